@@ -1,0 +1,32 @@
+// Low-precision analytical Sun and Moon ephemerides (Montenbruck & Gill 2000,
+// Satellite Orbits, section 3.3.2), geocentric, ECI J2000, meters.
+// Accuracy: Sun ~0.1 deg / 0.1 %, Moon ~ several arcmin / 500 km (M&G).
+#pragma once
+
+#include "artms/astro/frames.hpp"
+#include "artms/astro/time.hpp"
+
+namespace artms::dynamics {
+
+using astro::TimeTT;
+using astro::Vec3;
+
+inline constexpr double kGmSun_m3ps2 = 1.32712440018e20;   // DE405 / IERS
+inline constexpr double kGmMoon_m3ps2 = 4.9028e12;         // DE405 / IERS
+inline constexpr double kAstronomicalUnit_m = 149597870700.0;
+inline constexpr double kRadiusSun_m = 696000e3;
+inline constexpr double kRadiusMoon_m = 1738e3;
+
+// Geocentric position of the Sun, ECI J2000 components (M&G eq. 3.43-3.46,
+// with the 1.3972 deg/century precession term taking ecliptic of date back
+// to J2000).
+Vec3 sun_position_eci_m(TimeTT t);
+// Geocentric position of the Moon, ECI J2000 components (M&G eq. 3.47-3.49).
+Vec3 moon_position_eci_m(TimeTT t);
+
+// Third-body perturbing acceleration on a satellite at r_sat of a body of
+// gravitational parameter gm at r_body (both geocentric), M&G eq. 3.37:
+// a = gm ((s - r)/|s - r|^3 - s/|s|^3).
+Vec3 third_body_acceleration_mps2(const Vec3& r_sat_m, const Vec3& r_body_m, double gm_m3ps2);
+
+}  // namespace artms::dynamics

@@ -1,0 +1,1 @@
+#include "artms/dynamics/ephemeris.hpp"

@@ -1,0 +1,1 @@
+#include "artms/dynamics/forces.hpp"

@@ -1,0 +1,1 @@
+#include "artms/dynamics/j2_mean.hpp"

@@ -1,0 +1,1 @@
+#include "artms/dynamics/shadow.hpp"

@@ -1,0 +1,1 @@
+// Tests for atmosphere (to be written).

@@ -1,0 +1,1 @@
+// Tests for ephemeris (to be written).

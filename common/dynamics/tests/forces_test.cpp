@@ -1,0 +1,1 @@
+// Tests for forces (to be written).

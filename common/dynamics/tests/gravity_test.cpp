@@ -1,0 +1,1 @@
+// Tests for gravity (to be written).

@@ -1,0 +1,1 @@
+// Tests for gve (to be written).

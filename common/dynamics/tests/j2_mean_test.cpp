@@ -1,0 +1,1 @@
+// Tests for j2_mean (to be written).

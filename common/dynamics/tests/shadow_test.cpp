@@ -1,0 +1,1 @@
+// Tests for shadow (to be written).
