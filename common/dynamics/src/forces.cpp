@@ -1,1 +1,156 @@
 #include "artms/dynamics/forces.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+#include <stdexcept>
+
+#include "artms/dynamics/ephemeris.hpp"
+
+namespace artms::dynamics {
+
+void SpacecraftProperties::validate() const {
+  const auto positive = [](double v, const char* name) {
+    if (!(v > 0.0) || !std::isfinite(v)) {
+      throw std::invalid_argument(std::string("spacecraft property ") + name +
+                                  " must be a positive number, got " + std::to_string(v));
+    }
+  };
+  positive(mass_kg, "mass_kg");
+  positive(drag_area_m2, "drag_area_m2");
+  positive(cd, "cd");
+  positive(srp_area_m2, "srp_area_m2");
+  positive(cr, "cr");
+}
+
+ForceModelOptions ForceModelOptions::parse(std::string_view spec) {
+  ForceModelOptions o;
+  o.drag = o.sun = o.moon = o.srp = false;
+  if (spec == "two-body") {
+    o.gravity_degree = o.gravity_order = 0;
+    return o;
+  }
+  if (spec == "j2") {
+    o.gravity_degree = 2;
+    o.gravity_order = 0;
+    return o;
+  }
+  o.gravity_degree = o.gravity_order = 0;
+  std::string item;
+  std::stringstream ss{std::string(spec)};
+  bool any = false;
+  while (std::getline(ss, item, ',')) {
+    any = true;
+    if (item == "drag") {
+      o.drag = true;
+    } else if (item == "sun") {
+      o.sun = true;
+    } else if (item == "moon") {
+      o.moon = true;
+    } else if (item == "srp") {
+      o.srp = true;
+    } else if (item.rfind("grav", 0) == 0 && item.size() > 4) {
+      int n = -1, m = -1;
+      char sep = 0;
+      std::istringstream in(item.substr(4));
+      in >> n;
+      if (in >> sep) {
+        if (sep != '_' || !(in >> m)) n = -1;
+      } else {
+        m = n;
+      }
+      if (n < 0 || m < 0 || m > n || !in.eof()) {
+        throw std::invalid_argument("force model: '" + item +
+                                    "' is not gravN or gravN_M with 0 <= M <= N");
+      }
+      o.gravity_degree = n;
+      o.gravity_order = m;
+    } else {
+      throw std::invalid_argument("force model: unknown item '" + item +
+                                  "' (expected two-body, j2, or a comma list of gravN, gravN_M, "
+                                  "drag, sun, moon, srp)");
+    }
+  }
+  if (!any) throw std::invalid_argument("force model: empty specification");
+  return o;
+}
+
+std::string ForceModelOptions::describe() const {
+  std::ostringstream s;
+  s << "gravity " << gravity_degree << "x" << gravity_order;
+  if (drag) s << ", Harris-Priester drag (n=" << atmosphere.cosine_exponent << ")";
+  if (sun) s << ", Sun";
+  if (moon) s << ", Moon";
+  if (srp) s << ", SRP (" << (shadow == ShadowModel::kConical ? "conical" : "cylindrical") << " shadow)";
+  return s.str();
+}
+
+StateVector apply_maneuver(const StateVector& x, const astro::Vec3& dv_rtn) {
+  StateVector out = x;
+  out.v_mps += astro::R_rtn_from_eci(x).transpose() * dv_rtn;
+  return out;
+}
+
+ForceModel ForceModel::load(const ForceModelOptions& options, const std::string& data_dir) {
+  const std::string gfc = data_dir + "/gravity/GGM01S.gfc";
+  const GravityField field = GravityField::from_gfc(gfc, std::max(options.gravity_degree, 2));
+  std::optional<HarrisPriester> hp;
+  if (options.drag) {
+    hp = HarrisPriester::from_file(data_dir + "/atmosphere/harris_priester_table.csv",
+                                   options.atmosphere);
+  }
+  return ForceModel(options, field, std::move(hp));
+}
+
+ForceModel::ForceModel(const ForceModelOptions& options, const GravityField& field,
+                       std::optional<HarrisPriester> atmosphere)
+    : options_(options),
+      gravity_(field, options.gravity_degree, options.gravity_order),
+      atmosphere_(std::move(atmosphere)) {
+  if (options_.drag && !atmosphere_) {
+    throw std::invalid_argument("ForceModel: drag enabled but no atmosphere model given");
+  }
+}
+
+Vec3 ForceModel::evaluate(astro::TimeTT t, const StateVector& x, const SpacecraftProperties& sc,
+                          bool central) const {
+  Vec3 a = Vec3::Zero();
+  const bool need_ecef = options_.gravity_degree > 0 || options_.drag;
+  Mat3 R_ecef_from_eci = Mat3::Identity();
+  Vec3 r_ecef = x.r_m;
+  if (need_ecef) {
+    R_ecef_from_eci = astro::R_ecef_from_eci(t);
+    r_ecef = R_ecef_from_eci * x.r_m;
+  }
+  // Gravity in the Earth-fixed frame (tesseral terms rotate with the Earth).
+  if (options_.gravity_degree > 0) {
+    a += R_ecef_from_eci.transpose() *
+         (central ? gravity_.acceleration_ecef(r_ecef) : gravity_.perturbation_ecef(r_ecef));
+  } else if (central) {
+    a += -gravity_.gm_m3ps2() * x.r_m / std::pow(x.r_m.norm(), 3);
+  }
+  Vec3 r_sun = Vec3::Zero();
+  if (options_.sun || options_.srp || options_.drag) r_sun = sun_position_eci_m(t);
+  if (options_.sun) a += third_body_acceleration_mps2(x.r_m, r_sun, kGmSun_m3ps2);
+  if (options_.moon) a += third_body_acceleration_mps2(x.r_m, moon_position_eci_m(t), kGmMoon_m3ps2);
+  if (options_.drag) {
+    const double rho = atmosphere_->density_kgpm3(x.r_m, r_ecef, r_sun);
+    a += drag_acceleration_mps2(x.r_m, x.v_mps, rho, sc.cd, sc.drag_area_m2 / sc.mass_kg);
+  }
+  if (options_.srp) {
+    a += srp_acceleration_mps2(x.r_m, r_sun, sc.cr, sc.srp_area_m2 / sc.mass_kg, options_.shadow);
+  }
+  return a;
+}
+
+Vec3 ForceModel::acceleration_eci(astro::TimeTT t, const StateVector& x,
+                                  const SpacecraftProperties& sc) const {
+  return evaluate(t, x, sc, true);
+}
+
+Vec3 ForceModel::perturbation_eci(astro::TimeTT t, const StateVector& x,
+                                  const SpacecraftProperties& sc) const {
+  return evaluate(t, x, sc, false);
+}
+
+}  // namespace artms::dynamics

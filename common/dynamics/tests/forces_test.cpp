@@ -1,1 +1,75 @@
-// Tests for forces (to be written).
+#include "artms/dynamics/forces.hpp"
+
+#include <gtest/gtest.h>
+
+#include "artms/astro/elements.hpp"
+#include "artms/testing/testing.hpp"
+
+namespace artms::dynamics {
+namespace {
+
+TEST(ForceSpec, ParsesDesignSyntax) {
+  const auto two = ForceModelOptions::parse("two-body");
+  EXPECT_EQ(two.gravity_degree, 0);
+  EXPECT_FALSE(two.drag);
+  const auto j2 = ForceModelOptions::parse("j2");
+  EXPECT_EQ(j2.gravity_degree, 2);
+  EXPECT_EQ(j2.gravity_order, 0);
+  const auto full = ForceModelOptions::parse("grav10,drag,sun,moon,srp");
+  EXPECT_EQ(full.gravity_degree, 10);
+  EXPECT_EQ(full.gravity_order, 10);
+  EXPECT_TRUE(full.drag && full.sun && full.moon && full.srp);
+  const auto g = ForceModelOptions::parse("grav20_4,sun");
+  EXPECT_EQ(g.gravity_degree, 20);
+  EXPECT_EQ(g.gravity_order, 4);
+  EXPECT_FALSE(g.drag);
+}
+
+TEST(ForceSpec, RejectsUnknownItemsByName) {
+  for (const char* bad : {"grav10,dragg", "gravx", "grav4_5", "", "grav10,,sun"}) {
+    try {
+      (void)ForceModelOptions::parse(bad);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("force model"), std::string::npos);
+    }
+  }
+}
+
+TEST(Forces, CentralTermAndPerturbationSplit) {
+  const ForceModel f = ForceModel::load(ForceModelOptions::parse("grav10,drag,sun,moon,srp"),
+                                        ARTMS_DATA_DIR);
+  const astro::TimeTT t = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
+  const astro::StateVector x{Vec3(6.9e6, 0.5e6, 0.8e6), Vec3(-800, 1200, 7400)};
+  const SpacecraftProperties sc;
+  const Vec3 total = f.acceleration_eci(t, x, sc);
+  const Vec3 pert = f.perturbation_eci(t, x, sc);
+  const Vec3 central = -f.gm_m3ps2() * x.r_m / std::pow(x.r_m.norm(), 3);
+  EXPECT_LT((total - pert - central).norm(), 1e-12);
+  // J2 dominates the perturbation in LEO: ~1e-2 m/s^2.
+  EXPECT_GT(pert.norm(), 5e-3);
+  EXPECT_LT(pert.norm(), 3e-2);
+}
+
+TEST(Forces, ManeuverIsInRtn) {
+  const astro::StateVector x{Vec3(7e6, 0, 0), Vec3(0, 7500, 0)};
+  const astro::StateVector y = apply_maneuver(x, Vec3(1.0, 2.0, 3.0));
+  // Circular equatorial at +x: R = x, T = y, N = z.
+  EXPECT_LT((y.v_mps - Vec3(1.0, 7502.0, 3.0)).norm(), 1e-12);
+  EXPECT_EQ(y.r_m, x.r_m);
+}
+
+TEST(Forces, ValidatesSpacecraftProperties) {
+  SpacecraftProperties sc;
+  EXPECT_NO_THROW(sc.validate());
+  sc.cd = 0.0;
+  try {
+    sc.validate();
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cd"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace artms::dynamics
