@@ -13,16 +13,22 @@ namespace artms::dynamics {
 using astro::Vec3;
 
 struct HarrisPriesterOptions {
-  // Cosine exponent n of the diurnal bulge: 2 for low-inclination, 6 for
-  // polar orbits. M&G's code uses 3; Starling flies at 97-99 deg.
-  double cosine_exponent = 3.0;
+  // Cosine exponent n of the diurnal bulge, rho_m + (rho_M - rho_m)
+  // cos^n(psi/2) (M&G section 3.5.2): 2 for low-inclination, 6 for polar orbits.
+  // M&G's code (and brahe) raise cos^2(psi/2) to n_prm = 3, i.e. n = 6; the
+  // brahe reference cases need n = 6. Starling flies at 97-99 deg.
+  double cosine_exponent = 6.0;
   double lag_angle_rad = 0.523599;  // 30 deg: bulge apex lags the Sun in RA
 };
 
 class HarrisPriester {
  public:
-  // Loads the table (height_km, rho_min, rho_max in g/km^3). Throws
-  // std::runtime_error naming the file and line on malformed input.
+  // Loads the table (height_km, rho_min, rho_max in g/km^3; '#' lines are
+  // comments; header row height_km,rho_min_g_per_km3,rho_max_g_per_km3).
+  // Throws std::runtime_error naming the file and line on malformed input
+  // (non-numbers, wrong field count, heights not increasing, densities not
+  // decreasing with height or rho_min > rho_max), std::invalid_argument for a
+  // non-positive cosine exponent.
   static HarrisPriester from_file(const std::string& csv_path,
                                   const HarrisPriesterOptions& options = {});
 

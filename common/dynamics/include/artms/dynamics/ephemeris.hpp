@@ -1,6 +1,7 @@
 // Low-precision analytical Sun and Moon ephemerides (Montenbruck & Gill 2000,
 // Satellite Orbits, section 3.3.2), geocentric, ECI J2000, meters.
-// Accuracy: Sun ~0.1 deg / 0.1 %, Moon ~ several arcmin / 500 km (M&G).
+// Accuracy: Sun ~0.1 deg / 0.1 %, Moon ~ several arcmin / 500 km (M&G);
+// measured figures below each function.
 #pragma once
 
 #include "artms/astro/frames.hpp"
@@ -17,11 +18,15 @@ inline constexpr double kAstronomicalUnit_m = 149597870700.0;
 inline constexpr double kRadiusSun_m = 696000e3;
 inline constexpr double kRadiusMoon_m = 1738e3;
 
-// Geocentric position of the Sun, ECI J2000 components (M&G eq. 3.43-3.46,
-// with the 1.3972 deg/century precession term taking ecliptic of date back
-// to J2000).
+// Geocentric position of the Sun, ECI J2000 components (M&G eq. 3.43-3.46).
+// M&G's longitude is referred to the J2000 equinox, so their optional
+// +1.3972 deg/century term (which would refer it to the equinox of date) is
+// not applied. Against astropy 5.2 (ERFA epv00) the direction error is
+// < 0.005 deg + 0.33 deg per century from J2000 (0.10 deg in 2030) and the
+// distance error < 1e-4 relative (ephemeris_test.cpp).
 Vec3 sun_position_eci_m(TimeTT t);
 // Geocentric position of the Moon, ECI J2000 components (M&G eq. 3.47-3.49).
+// Against astropy 5.2 (ERFA moon98), 2000-2030: < 0.08 deg in direction, < 450 km in distance.
 Vec3 moon_position_eci_m(TimeTT t);
 
 // Third-body perturbing acceleration on a satellite at r_sat of a body of
