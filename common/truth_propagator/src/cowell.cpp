@@ -21,6 +21,10 @@ void CowellOptions::validate() const {
   positive(rel_tol, "rel_tol");
   positive(abs_tol_m, "abs_tol_m");
   positive(max_step_s, "max_step_s");
+  positive(nonlinear_convergence_coefficient, "nonlinear_convergence_coefficient");
+  if (max_nonlinear_iterations < 1) {
+    throw std::invalid_argument("CowellOptions.max_nonlinear_iterations must be >= 1");
+  }
   if (max_steps_between_outputs <= 0) {
     throw std::invalid_argument("CowellOptions.max_steps_between_outputs must be positive");
   }
@@ -88,6 +92,10 @@ struct CowellPropagator::Impl {
       nls = SUNNonlinSol_FixedPoint(y, 0, ctx);
       check(CVodeSetNonlinearSolver(cvode, nls), "CVodeSetNonlinearSolver");
       check(CVodeSetMaxStep(cvode, options.max_step_s), "CVodeSetMaxStep");
+      check(CVodeSetNonlinConvCoef(cvode, options.nonlinear_convergence_coefficient),
+            "CVodeSetNonlinConvCoef");
+      check(CVodeSetMaxNonlinIters(cvode, options.max_nonlinear_iterations),
+            "CVodeSetMaxNonlinIters");
       check(CVodeSetMaxNumSteps(cvode, options.max_steps_between_outputs), "CVodeSetMaxNumSteps");
     } else {
       check(CVodeReInit(cvode, t0_s, y), "CVodeReInit");
@@ -178,13 +186,15 @@ StateVector CowellPropagator::state_at(TimeTT t) {
   // Apply every maneuver at or before t (stop exactly on each, then restart).
   while (s.next_maneuver < s.maneuvers.size() && s.seconds(s.maneuvers[s.next_maneuver].t) <= target) {
     const double tm = s.seconds(s.maneuvers[s.next_maneuver].t);
-    double tret = s.current_time();
-    while (tret < tm) s.check(CVode(s.cvode, tm, s.y, &tret, CV_NORMAL), "CVode");
-    // At the stop time CVODE returns y(tm) exactly (CV_TSTOP_RETURN).
-    double* y = N_VGetArrayPointer(s.y);
-    if (tret != tm) {
-      s.check(CVodeGetDky(s.cvode, tm, 0, s.y), "CVodeGetDky");
+    // Single steps until CVODE lands on the stop time: it then returns y(tm)
+    // with CV_TSTOP_RETURN and forgets the stop time (SUNDIALS 6.4). A
+    // CV_NORMAL call with tout == tstop would interpolate instead and leave
+    // the stop time armed, which makes the next segment fail.
+    while (s.current_time() < tm) {
+      double tret = 0.0;
+      s.check(CVode(s.cvode, tm, s.y, &tret, CV_ONE_STEP), "CVode");
     }
+    double* y = N_VGetArrayPointer(s.y);
     StateVector x{astro::Vec3(y[0], y[1], y[2]), astro::Vec3(y[3], y[4], y[5])};
     x = dynamics::apply_maneuver(x, s.maneuvers[s.next_maneuver].dv_rtn_mps);
     for (int k = 0; k < 3; ++k) {

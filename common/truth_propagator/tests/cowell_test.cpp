@@ -88,7 +88,7 @@ TEST(Cowell, ManeuverStopsExactlyAtItsEpoch) {
   const StateVector at_tm = dynamics::apply_maneuver(leg1.state_at(tm), dv_rtn);
   CowellPropagator leg2(forces, {}, tm, at_tm);
   const StateVector ref = leg2.state_at(pse_epoch().plus_seconds(10000.0));
-  EXPECT_LT((end.r_m - ref.r_m).norm(), 1e-4);
+  EXPECT_LT((end.r_m - ref.r_m).norm(), 1e-3);  // integration error of the two paths
   // And it differs from not maneuvering by much more than that.
   const StateVector coast = leg1.state_at(pse_epoch().plus_seconds(10000.0));
   EXPECT_GT((end.r_m - coast.r_m).norm(), 100.0);
