@@ -20,6 +20,14 @@ for tool in "$BIN"/artms-*; do
   "$tool" --help
 done
 "$BIN/artms_astro_tests" --gtest_brief=1 --gtest_filter='Roe.LinearMapErrorForTable2Formations'
+# Until the swarm exists: the truth of the default scenario's observer, SV4 in
+# the PSE formation (Table 2), over three orbits with the full force model.
+OUT=${ARTMS_RUN_DIR:-runs/foundation}
+mkdir -p "$OUT"
+"$BIN/artms-propagate" --epoch 2024-05-08T00:00:00Z --oe 6943000,0.0016,99.4,-38,86.4,-239.4 \
+  --duration 5h --step 60s --force grav10,drag,sun,moon --name SV4 \
+  --out "$OUT/sv4.csv" --oem "$OUT/sv4.oem"
+echo "SV4 truth over three orbits: $OUT/sv4.csv and $OUT/sv4.oem"
 echo
 echo "The multi-process swarm (artms-swarm run config/swarms/starling_pse.yaml) arrives with"
 echo "the swarm runtime (issue 4); this command will then run it unchanged."
