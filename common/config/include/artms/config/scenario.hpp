@@ -1,0 +1,189 @@
+// Scenario files (config/swarms/*.yaml): the swarm, its observers, crosslink,
+// ARTMS tuning, maneuvers and injected faults. The schema is documented in
+// config/swarms/SCHEMA.md; which processes exist follows from the scenario
+// (see services(), below), not from code.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "artms/astro/elements.hpp"
+#include "artms/astro/frames.hpp"
+#include "artms/astro/time.hpp"
+#include "artms/dynamics/forces.hpp"
+
+namespace artms::config {
+
+// One problem found in a scenario file: where, which field, what was expected.
+struct Diagnostic {
+  std::string file;
+  int line = 0;    // 1-based; 0 when unknown
+  int column = 0;  // 1-based; 0 when unknown
+  std::string field;    // dotted path, e.g. "spacecraft[2].roe_m"
+  std::string message;  // what is wrong and what was expected
+  [[nodiscard]] std::string format() const;  // "file:line:col: field: message"
+};
+
+// Thrown by load_scenario with every problem found (not just the first).
+class ScenarioError : public std::runtime_error {
+ public:
+  explicit ScenarioError(std::vector<Diagnostic> diagnostics);
+  [[nodiscard]] const std::vector<Diagnostic>& diagnostics() const { return diagnostics_; }
+
+ private:
+  std::vector<Diagnostic> diagnostics_;
+};
+
+struct TimeWindow {
+  astro::TimeTT start;
+  astro::TimeTT end;  // end > start
+};
+
+// Initial orbit of a spacecraft: absolute Keplerian, absolute quasi-nonsingular
+// (paper eq. 3), or ROE relative to a chief (paper eq. 4, a*droe in meters,
+// a = the chief's semi-major axis), as Table 2 of the paper gives them.
+// Elements are osculating at the scenario epoch.
+struct InitialOrbit {
+  enum class Kind { kKepler, kQns, kRelative } kind = Kind::kQns;
+  astro::KeplerElements kepler;  // kKepler
+  astro::QnsElements qns;        // kQns
+  std::string chief;             // kRelative: id of another spacecraft
+  astro::Vec6 a_droe_m = astro::Vec6::Zero();  // kRelative
+};
+
+struct SpacecraftConfig {
+  std::string id;  // e.g. "SV4"; [A-Za-z0-9_-]+
+  InitialOrbit orbit;
+  dynamics::SpacecraftProperties properties;
+};
+
+struct GnssConfig {
+  bool enabled = true;
+  double period_s = 60.0;
+  double sigma_position_m = 3.0;     // 1-sigma per axis, white
+  double sigma_velocity_mps = 0.03;  // 1-sigma per axis, white
+  std::vector<TimeWindow> outages;   // no fix (valid = false) inside
+};
+
+struct CameraConfig {
+  std::string model = "nst";  // camera model file stem in config/cameras/
+  astro::Boresight boresight = astro::Boresight::kMinusVelocity;
+  double cadence_s = 60.0;
+  double pointing_error_deg = 0.0;  // 1-sigma, fixed per run
+  double jitter_deg = 0.0;          // 1-sigma, per frame
+};
+
+// Ground a-priori knowledge uplinked to an observer (navigation mode 1):
+// target ROE from a ground orbit determination `age_days` old, its errors
+// following from that age (the SOD issue models them).
+struct APrioriConfig {
+  double age_days = 3.5;
+};
+
+struct ObserverConfig {
+  std::string spacecraft;  // id of a spacecraft
+  int mode = 1;            // navigation mode 1-4 (see SCHEMA.md); 0 = GNSS-only baseline
+  CameraConfig camera;
+  GnssConfig gnss;
+  APrioriConfig apriori;
+};
+
+struct LinkOutage {
+  std::string from;  // spacecraft id or "*"
+  std::string to;    // spacecraft id or "*"
+  TimeWindow window;
+};
+
+struct CrosslinkConfig {
+  bool enabled = true;
+  double period_s = 60.0;
+  double latency_s = 0.0;
+  double max_range_m = 500e3;
+  double loss_probability = 0.0;  // [0, 1]
+  bool use_remote_gnss = false;   // paper's 02/05/24 anomaly: off by design
+  std::vector<LinkOutage> outages;
+};
+
+// The paper's telecommand table, the parts later issues consume. Keys and
+// defaults are in SCHEMA.md, each with the paper's value where it gives one.
+struct ImpTuning {
+  double detection_sigma = 5.0;      // threshold above background, in noise sigmas
+  int dbscan_min_points = 3;         // n_D
+  double dbscan_radius_px = 10.0;    // eps_D
+  int dbscan_frames = 5;             // frames of unassigned candidates clustered
+};
+struct BodTuning {
+  double period_s = 5400.0;          // 90 minutes (paper, "Flight Operations")
+  int samples = 100;                 // along-track separation samples
+  int max_iterations = 20;
+};
+struct SodTuning {
+  double period_s = 60.0;
+  double bearing_sigma_arcsec = 40.0;  // paper: 40" (20" was not robust)
+  double eps_assign = 3.0;
+  double eps_ambig = 6.0;
+  int max_steps_without_update = 120;
+  int max_large_residuals = 10;
+};
+struct ArtmsTuning {
+  ImpTuning imp;
+  BodTuning bod;
+  SodTuning sod;
+};
+
+struct ManeuverConfig {
+  std::string spacecraft;
+  astro::TimeTT epoch;
+  astro::Vec3 dv_rtn_mps = astro::Vec3::Zero();
+};
+
+// Injected faults per observer (empty observer = all observers).
+struct FaultConfig {
+  std::string observer;
+  double frame_dropout_probability = 0.0;  // [0, 1)
+  double time_tag_offset_s = 0.0;
+  double time_tag_drift_ppm = 0.0;
+};
+
+struct Scenario {
+  std::string name;         // e.g. "starling-pse"
+  std::string description;
+  std::string source_path;  // file it was loaded from
+  astro::TimeTT epoch;
+  double duration_s = 0.0;
+  double step_s = 60.0;     // lock-step period of the clock
+  std::uint64_t seed = 1;
+  dynamics::ForceModelOptions force_model;
+  std::vector<SpacecraftConfig> spacecraft;
+  std::vector<ObserverConfig> observers;
+  CrosslinkConfig crosslink;
+  ArtmsTuning tuning;
+  std::vector<ManeuverConfig> maneuvers;
+  std::vector<FaultConfig> faults;
+
+  [[nodiscard]] const SpacecraftConfig& spacecraft_by_id(const std::string& id) const;
+  // Initial ECI state of every spacecraft at the epoch (relative orbits
+  // resolved through their chiefs with the exact inverse of eq. 4).
+  [[nodiscard]] astro::StateVector initial_state_eci(const std::string& id) const;
+  // Orbit period of the first observer's spacecraft (for --orbits N).
+  [[nodiscard]] double reference_period_s() const;
+};
+
+// Loads and validates a scenario. Every problem is collected and thrown
+// together as a ScenarioError (syntax errors, wrong types, missing required
+// fields, unknown keys, out-of-range values, unknown or duplicate ids).
+Scenario load_scenario(const std::string& path);
+// The same checks, returning the diagnostics instead of throwing (empty =
+// valid). For `artms-swarm validate`.
+std::vector<Diagnostic> validate_scenario_file(const std::string& path);
+
+// The processes a scenario runs, in start order, as the launcher and the
+// truth service (lock-step registration) both need them:
+// "truth", "camera-renderer", "crosslink-emulator", "observer-<id>"..., "recorder".
+std::vector<std::string> services(const Scenario& s);
+
+}  // namespace artms::config

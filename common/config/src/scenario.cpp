@@ -1,0 +1,1 @@
+#include "artms/config/scenario.hpp"
