@@ -1,0 +1,176 @@
+#include "artms/runtime/runtime.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <thread>
+
+#include "artms/io/duration.hpp"
+
+namespace artms::runtime {
+
+std::atomic<bool> g_stop_requested{false};
+
+namespace {
+void on_signal(int) { g_stop_requested.store(true); }
+}  // namespace
+
+void install_signal_handlers() {
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+TopicSet::TopicSet(const dds::Participant& p)
+    : clock_tick(p, &artms_msg_ClockTick_desc, "artms_clock_tick"),
+      step_done(p, &artms_msg_StepDone_desc, "artms_step_done"),
+      truth_state(p, &artms_msg_TruthState_desc, "artms_truth_state"),
+      gnss_fix(p, &artms_msg_GnssFix_desc, "artms_gnss_fix"),
+      camera_frame(p, &artms_msg_CameraFrame_desc, "artms_camera_frame"),
+      frame_truth(p, &artms_msg_FrameTruth_desc, "artms_frame_truth"),
+      isl_broadcast(p, &artms_msg_IslBroadcast_desc, "artms_isl_broadcast"),
+      nav_telemetry(p, &artms_msg_NavTelemetry_desc, "artms_nav_telemetry"),
+      link_state(p, &artms_msg_LinkState_desc, "artms_link_state"),
+      event(p, &artms_msg_Event_desc, "artms_event") {}
+
+dds::QosProfile clock_qos() { return {true, true, 1, 0, {}}; }
+dds::QosProfile step_done_qos() { return {true, true, 1, 0, {}}; }
+dds::QosProfile data_qos() { return {true, false, 0, 0, {}}; }
+
+Topology topology(const config::Scenario& s) {
+  Topology t;
+  t.services = config::services(s);
+  const int n = static_cast<int>(t.services.size());
+  int gnss_readers = 1;  // recorder
+  for (const auto& o : s.observers) gnss_readers += o.gnss.enabled ? 1 : 0;
+  t.readers_of_topic = {
+      {"clock_tick", n - 1},            // every service but truth
+      {"step_done", 1},                 // truth
+      {"truth_state", 3},               // camera renderer, crosslink emulator, recorder
+      {"gnss_fix", gnss_readers},       // observers with GNSS, recorder
+      {"nav_telemetry", 1},             // recorder
+      {"link_state", 1},                // recorder
+      {"event", 1},                     // recorder
+  };
+  return t;
+}
+
+LockStepClient::LockStepClient(const dds::Participant& p, const TopicSet& topics,
+                               std::string service_name, double step_timeout_s)
+    : name_(std::move(service_name)),
+      step_timeout_s_(step_timeout_s),
+      tick_reader_(p, topics.clock_tick, clock_qos()),
+      done_writer_(p, topics.step_done, step_done_qos()),
+      waitset_(p) {
+  waitset_.attach(tick_reader_.handle());
+}
+
+void LockStepClient::announce_ready(const std::vector<ExpectedWriter>& writers, double timeout_s) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  std::vector<ExpectedWriter> all = writers;
+  all.push_back({"clock_tick reader", [this] { return tick_reader_.matched_writers(); }, 1});
+  all.push_back({"step_done writer", [this] { return done_writer_.matched_readers(); }, 1});
+  for (;;) {
+    std::string missing;
+    for (const auto& w : all) {
+      const int m = w.matched();
+      if (m < w.expected) {
+        missing += (missing.empty() ? "" : ", ") + w.name + " (" + std::to_string(m) + "/" +
+                   std::to_string(w.expected) + ")";
+      }
+    }
+    if (missing.empty()) break;
+    if (g_stop_requested) throw std::runtime_error(name_ + ": stopped before start");
+    if (std::chrono::steady_clock::now() > deadline) {
+      throw std::runtime_error(name_ + ": discovery incomplete after " +
+                               std::to_string(static_cast<int>(timeout_s)) + " s: " + missing);
+    }
+    // Discovery has no waitable condition per match count: a short sleep.
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  done(-1, 0);
+}
+
+std::optional<artms_msg_ClockTick> LockStepClient::wait_tick() {
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(step_timeout_s_);
+  for (;;) {
+    std::optional<artms_msg_ClockTick> next;
+    tick_reader_.take_each([&](const artms_msg_ClockTick& t) {
+      if (t.step > last_step_) next = t;
+    });
+    if (next) {
+      last_step_ = next->step;
+      return next;
+    }
+    if (g_stop_requested) return std::nullopt;
+    const double left =
+        std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
+    if (left <= 0.0) {
+      timed_out_ = true;
+      return std::nullopt;
+    }
+    waitset_.wait(std::min(left, 0.5));  // wake periodically to see stop requests
+  }
+}
+
+void LockStepClient::done(std::int64_t step, int status) {
+  artms_msg_StepDone d{};
+  dds::copy_string(d.service, sizeof d.service, name_);
+  d.step = step;
+  d.status = status;
+  done_writer_.write(d);
+}
+
+EventLog::EventLog(const dds::Participant& p, const TopicSet& topics, std::string source)
+    : source_(std::move(source)), writer_(p, topics.event, data_qos()) {}
+
+void EventLog::emit(std::int64_t t, int severity, const std::string& text) {
+  artms_msg_Event e{};
+  dds::copy_string(e.source, sizeof e.source, source_);
+  e.t_tt_ns = t;
+  e.severity = static_cast<uint8_t>(severity);
+  dds::copy_string(e.text, sizeof e.text, text);
+  writer_.write(e);
+  static const char* kLevel[] = {"info", "warning", "error"};
+  std::fprintf(stderr, "[%s] %s: %s\n", source_.c_str(), kLevel[severity], text.c_str());
+}
+
+std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const std::string& app_name,
+                                                    const std::string& description, int* exit_code) {
+  CLI::App app{description, app_name};
+  ServiceOptions o;
+  std::string duration;
+  std::uint64_t seed = 0;
+  app.add_option("--scenario", o.scenario_path, "scenario YAML file")->required();
+  app.add_option("--out", o.out_dir, "run folder")->required();
+  app.add_option("--name", o.name, "service name (as in the scenario's process list)")->required();
+  auto* dur = app.add_option("--duration", duration, "override the scenario duration (6h, 1d, ...)");
+  auto* sd = app.add_option("--seed", seed, "override the scenario seed");
+  app.add_option("--rate", o.rate, "0 = lock-step as fast as possible; X = X times real time");
+  app.add_option("--step-timeout", o.step_timeout_s, "seconds to wait for a step before giving up")
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    *exit_code = app.exit(e);
+    return std::nullopt;
+  }
+  if (dur->count() > 0) o.duration_s = io::parse_duration_s(duration);
+  if (sd->count() > 0) o.seed = seed;
+  return o;
+}
+
+config::Scenario load_for_service(const ServiceOptions& o) {
+  config::Scenario s = config::load_scenario(o.scenario_path);
+  if (o.duration_s) s.duration_s = *o.duration_s;
+  if (o.seed) s.seed = *o.seed;
+  return s;
+}
+
+}  // namespace artms::runtime

@@ -1,0 +1,1 @@
+/* The generated artms.c is compiled into this library (idlc_generate adds it). */

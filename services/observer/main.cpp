@@ -1,0 +1,139 @@
+// artms-observer: one ARTMS process per observing spacecraft. Until IMP and
+// SOD land it runs the GNSS-only baseline (navigation mode 0): its own
+// absolute orbit from GNSS fixes, propagated between fixes with the onboard
+// GVE/RK4 model. It never reads truth: it subscribes to its GNSS fixes only.
+#include <cmath>
+#include <cstdio>
+#include <optional>
+
+#include "artms/astro/elements.hpp"
+#include "artms/dynamics/gve.hpp"
+#include "artms/runtime/runtime.hpp"
+
+namespace {
+
+using namespace artms;
+
+struct Fix {
+  astro::TimeTT t;
+  astro::StateVector x;
+  double sigma_r, sigma_v;
+};
+
+int run(const runtime::ServiceOptions& opt) {
+  const config::Scenario sc = runtime::load_for_service(opt);
+  const std::string prefix = "observer-";
+  if (opt.name.rfind(prefix, 0) != 0) {
+    throw std::invalid_argument("observer name must be observer-<spacecraft>, got " + opt.name);
+  }
+  const std::string me = opt.name.substr(prefix.size());
+  const config::ObserverConfig* cfg = nullptr;
+  for (const auto& o : sc.observers) {
+    if (o.spacecraft == me) cfg = &o;
+  }
+  if (!cfg) throw std::invalid_argument("spacecraft " + me + " is not an observer in the scenario");
+  const runtime::Topology topo = runtime::topology(sc);
+
+  dds::Participant participant(dds::domain_from_environment());
+  runtime::TopicSet topics(participant);
+  runtime::LockStepClient clock(participant, topics, opt.name, opt.step_timeout_s);
+  dds::Reader<artms_msg_GnssFix> gnss_reader(participant, topics.gnss_fix, runtime::data_qos());
+  dds::Writer<artms_msg_NavTelemetry> nav_writer(participant, topics.nav_telemetry, runtime::data_qos());
+  runtime::EventLog events(participant, topics, opt.name);
+  // The onboard model (the observer's own, not the truth propagator).
+  const auto forces = dynamics::ForceModel::load(sc.force_model, ARTMS_DATA_DIR);
+  const dynamics::GveRk4Propagator onboard(forces, dynamics::SpacecraftProperties{});
+
+  const auto& rt = topo.readers_of_topic;
+  clock.announce_ready({{"nav_telemetry writer", [&] { return nav_writer.matched_readers(); }, rt.at("nav_telemetry")},
+                        {"event writer", [&] { return events.writer().matched_readers(); }, rt.at("event")},
+                        {"gnss_fix reader", [&] { return gnss_reader.matched_writers(); }, cfg->gnss.enabled ? 1 : 0}},
+                       60.0);
+
+  std::optional<Fix> last_fix;
+  std::size_t rejected = 0;
+  bool announced = false;
+  while (auto tick = clock.wait_tick()) {
+    const astro::TimeTT t{tick->t_tt_ns};
+    if (!announced) {
+      announced = true;
+      events.info(t.ns_since_j2000,
+                  "navigation mode " + std::to_string(cfg->mode) +
+                      " requested; IMP/SOD not available yet: running the GNSS-only baseline (mode 0)");
+    }
+    gnss_reader.take_each([&](const artms_msg_GnssFix& f) {
+      if (dds::to_string(f.spacecraft, sizeof f.spacecraft) != me || !f.valid) return;
+      Fix fix{astro::TimeTT{f.t_tt_ns},
+              {astro::Vec3(f.r_eci_m[0], f.r_eci_m[1], f.r_eci_m[2]),
+               astro::Vec3(f.v_eci_mps[0], f.v_eci_mps[1], f.v_eci_mps[2])},
+              f.sigma_position_m, f.sigma_velocity_mps};
+      if (!fix.x.r_m.allFinite() || !fix.x.v_mps.allFinite() || !(fix.x.r_m.norm() > 6.4e6)) {
+        ++rejected;  // counted rejection of a corrupt message
+        events.warning(t.ns_since_j2000, "rejected a GNSS fix with invalid content (" +
+                                             std::to_string(rejected) + " so far)");
+        return;
+      }
+      if (!last_fix || last_fix->t <= fix.t) last_fix = fix;
+    });
+    if (!tick->final_step) {
+      artms_msg_NavTelemetry nav{};
+      dds::copy_string(nav.observer, sizeof nav.observer, me);
+      nav.t_tt_ns = t.ns_since_j2000;
+      nav.mode = 0;
+      if (last_fix) {
+        astro::StateVector x = last_fix->x;
+        const double dt = astro::seconds_between(last_fix->t, t);
+        if (dt != 0.0) {
+          const auto oe = onboard.propagate(astro::qns_from_cartesian(x), last_fix->t, t);
+          x = astro::cartesian_from_qns(oe);
+        }
+        // Uncertainty of a propagated fix: velocity error times age, plus an
+        // unmodelled acceleration of 1e-6 m/s^2 (documented in the README).
+        const double sr = std::hypot(last_fix->sigma_r, last_fix->sigma_v * dt, 0.5e-6 * dt * dt);
+        const double sv = std::hypot(last_fix->sigma_v, 1e-6 * dt);
+        nav.health = 0;
+        nav.source = 2;  // GNSS
+        for (int i = 0; i < 3; ++i) {
+          nav.r_eci_m[i] = x.r_m[i];
+          nav.v_eci_mps[i] = x.v_mps[i];
+          nav.covariance_rv[i * 6 + i] = sr * sr;
+          nav.covariance_rv[(i + 3) * 6 + i + 3] = sv * sv;
+        }
+      } else {
+        nav.health = 2;  // no solution yet
+        nav.source = 0;
+      }
+      nav_writer.write(nav);
+    }
+    for (dds::Entity* w : {static_cast<dds::Entity*>(&nav_writer), static_cast<dds::Entity*>(&events.writer())}) {
+      dds::detail::wait_for_acks(w->handle(), opt.step_timeout_s);
+    }
+    clock.done(tick->step);
+    if (tick->final_step) return 0;
+  }
+  if (clock.timed_out()) {
+    std::fprintf(stderr, "[%s] error: no clock tick within %.0f s (is truth running?)\n",
+                 opt.name.c_str(), opt.step_timeout_s);
+    return 1;
+  }
+  return runtime::g_stop_requested ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int code = 0;
+  const auto opt = runtime::parse_service_options(
+      argc, argv, "artms-observer",
+      "One ARTMS observer process (IMP -> BOD -> SOD on its own frames, GNSS and ISL).\n"
+      "Until IMP and SOD land it runs the GNSS-only baseline navigation mode.",
+      &code);
+  if (!opt) return code;
+  runtime::install_signal_handlers();
+  try {
+    return run(*opt);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "[%s] error: %s\n", opt->name.c_str(), e.what());
+    return 1;
+  }
+}

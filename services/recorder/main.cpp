@@ -1,0 +1,228 @@
+// artms-recorder: records every topic of a run into the run folder
+// (DESIGN.md section 8): truth.oem, nav/<observer>.csv, gnss.csv, isl.csv,
+// events.log. Output is deterministic: samples are buffered and written in
+// (time, source) order once a step is complete (everything stamped before
+// tick k has been acknowledged by the time tick k arrives).
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <limits>
+#include <tuple>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <vector>
+
+#include "artms/io/oem.hpp"
+#include "artms/runtime/runtime.hpp"
+
+namespace {
+
+using namespace artms;
+namespace fs = std::filesystem;
+
+struct Line {
+  std::int64_t t;
+  std::string source;
+  std::size_t order;  // arrival order within one source (DDS keeps it per writer)
+  std::string text;
+};
+
+class SortedSink {
+ public:
+  explicit SortedSink(const fs::path& path, const std::string& header) : out_(path) {
+    if (!out_) throw std::runtime_error("cannot write " + path.string());
+    if (!header.empty()) out_ << header << "\n";
+  }
+  void add(std::int64_t t, const std::string& source, std::string text) {
+    pending_.push_back({t, source, counter_[source]++, std::move(text)});
+  }
+  // Writes every line stamped strictly before `t_limit` (all when t_limit is max).
+  void flush(std::int64_t t_limit) {
+    std::stable_sort(pending_.begin(), pending_.end(), [](const Line& a, const Line& b) {
+      return std::tie(a.t, a.source, a.order) < std::tie(b.t, b.source, b.order);
+    });
+    std::size_t n = 0;
+    while (n < pending_.size() && pending_[n].t < t_limit) {
+      out_ << pending_[n].text << "\n";
+      ++n;
+    }
+    pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n));
+    out_.flush();
+  }
+
+ private:
+  std::ofstream out_;
+  std::vector<Line> pending_;
+  std::map<std::string, std::size_t> counter_;
+};
+
+std::string fmt(const char* format, ...) __attribute__((format(printf, 1, 2)));
+std::string fmt(const char* format, ...) {
+  char buf[1024];
+  va_list ap;
+  va_start(ap, format);
+  std::vsnprintf(buf, sizeof buf, format, ap);
+  va_end(ap);
+  return buf;
+}
+
+int run(const runtime::ServiceOptions& opt) {
+  const config::Scenario sc = runtime::load_for_service(opt);
+  const fs::path dir(opt.out_dir);
+  fs::create_directories(dir / "nav");
+  dds::Participant participant(dds::domain_from_environment());
+  runtime::TopicSet topics(participant);
+  runtime::LockStepClient clock(participant, topics, opt.name, opt.step_timeout_s);
+  const auto q = runtime::data_qos();
+  dds::Reader<artms_msg_TruthState> truth_reader(participant, topics.truth_state, q);
+  dds::Reader<artms_msg_GnssFix> gnss_reader(participant, topics.gnss_fix, q);
+  dds::Reader<artms_msg_NavTelemetry> nav_reader(participant, topics.nav_telemetry, q);
+  dds::Reader<artms_msg_Event> event_reader(participant, topics.event, q);
+  dds::Reader<artms_msg_LinkState> link_reader(participant, topics.link_state, q);
+  dds::Reader<artms_msg_IslBroadcast> isl_reader(participant, topics.isl_broadcast, q);
+
+  std::map<std::string, std::unique_ptr<SortedSink>> nav;
+  for (const auto& o : sc.observers) {
+    nav[o.spacecraft] = std::make_unique<SortedSink>(
+        dir / "nav" / (o.spacecraft + ".csv"),
+        "t_utc,t_tt_ns,mode,health,source,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,"
+        "sigma_x_m,sigma_y_m,sigma_z_m,sigma_vx_mps,sigma_vy_mps,sigma_vz_mps,targets");
+  }
+  SortedSink targets(dir / "nav" / "targets.csv",
+                     "t_utc,t_tt_ns,observer,target,da,dlambda,dex,dey,dix,diy,"
+                     "sigma_da,sigma_dlambda,sigma_dex,sigma_dey,sigma_dix,sigma_diy,"
+                     "local_measurements,remote_measurements");
+  SortedSink gnss(dir / "gnss.csv", "t_utc,t_tt_ns,spacecraft,valid,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps");
+  SortedSink isl(dir / "isl.csv", "t_utc,t_tt_ns,sender,sequence,source,measurements");
+  SortedSink links(dir / "links.csv", "t_utc,t_tt_ns,from,to,up,reason");
+  SortedSink events(dir / "events.log", "");
+  std::map<std::string, io::OemSegment> truth;
+
+  std::size_t rejected = 0;
+  const auto utc = [](std::int64_t t) { return astro::utc_string(astro::TimeTT{t}, 3); };
+  const auto drain = [&]() {
+    truth_reader.take_each([&](const artms_msg_TruthState& m) {
+      const std::string id = dds::to_string(m.spacecraft, sizeof m.spacecraft);
+      auto& seg = truth[id];
+      seg.object_name = seg.object_id = id;
+      const astro::TimeTT t{m.t_tt_ns};
+      if (!seg.samples.empty() && !(seg.samples.back().t < t)) {
+        ++rejected;
+        return;
+      }
+      seg.samples.push_back({t, {astro::Vec3(m.r_eci_m[0], m.r_eci_m[1], m.r_eci_m[2]),
+                                 astro::Vec3(m.v_eci_mps[0], m.v_eci_mps[1], m.v_eci_mps[2])}});
+    });
+    gnss_reader.take_each([&](const artms_msg_GnssFix& f) {
+      const std::string id = dds::to_string(f.spacecraft, sizeof f.spacecraft);
+      gnss.add(f.t_tt_ns, id,
+               fmt("%s,%lld,%s,%d,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f", utc(f.t_tt_ns).c_str(),
+                   static_cast<long long>(f.t_tt_ns), id.c_str(), f.valid ? 1 : 0, f.r_eci_m[0],
+                   f.r_eci_m[1], f.r_eci_m[2], f.v_eci_mps[0], f.v_eci_mps[1], f.v_eci_mps[2]));
+    });
+    nav_reader.take_each([&](const artms_msg_NavTelemetry& m) {
+      const std::string id = dds::to_string(m.observer, sizeof m.observer);
+      auto it = nav.find(id);
+      if (it == nav.end()) {
+        ++rejected;
+        return;
+      }
+      const auto sd = [&](int i) { return std::sqrt(std::max(0.0, m.covariance_rv[i * 6 + i])); };
+      it->second->add(
+          m.t_tt_ns, id,
+          fmt("%s,%lld,%d,%d,%d,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%u",
+              utc(m.t_tt_ns).c_str(), static_cast<long long>(m.t_tt_ns), m.mode, m.health, m.source,
+              m.r_eci_m[0], m.r_eci_m[1], m.r_eci_m[2], m.v_eci_mps[0], m.v_eci_mps[1],
+              m.v_eci_mps[2], sd(0), sd(1), sd(2), sd(3), sd(4), sd(5), m.targets._length));
+      for (std::uint32_t k = 0; k < m.targets._length; ++k) {
+        const auto& e = m.targets._buffer[k];
+        std::string line = fmt("%s,%lld,%s,%s", utc(m.t_tt_ns).c_str(),
+                               static_cast<long long>(m.t_tt_ns), id.c_str(),
+                               dds::to_string(e.target, sizeof e.target).c_str());
+        for (int i = 0; i < 6; ++i) line += fmt(",%.9e", e.roe[i]);
+        for (int i = 0; i < 6; ++i) line += fmt(",%.9e", std::sqrt(std::max(0.0, e.covariance_roe[i * 6 + i])));
+        line += fmt(",%u,%u", e.local_measurements, e.remote_measurements);
+        targets.add(m.t_tt_ns, id, line);
+      }
+    });
+    event_reader.take_each([&](const artms_msg_Event& e) {
+      static const char* kLevel[] = {"info", "warning", "error"};
+      const std::string src = dds::to_string(e.source, sizeof e.source);
+      events.add(e.t_tt_ns, src,
+                 fmt("%s [%s] %s: %s", utc(e.t_tt_ns).c_str(), src.c_str(),
+                     kLevel[std::min<int>(e.severity, 2)],
+                     dds::to_string(e.text, sizeof e.text).c_str()));
+    });
+    link_reader.take_each([&](const artms_msg_LinkState& l) {
+      const std::string from = dds::to_string(l.from_id, sizeof l.from_id);
+      links.add(l.t_tt_ns, from,
+                fmt("%s,%lld,%s,%s,%d,%s", utc(l.t_tt_ns).c_str(), static_cast<long long>(l.t_tt_ns),
+                    from.c_str(), dds::to_string(l.to_id, sizeof l.to_id).c_str(), l.up ? 1 : 0,
+                    dds::to_string(l.reason, sizeof l.reason).c_str()));
+    });
+    isl_reader.take_each([&](const artms_msg_IslBroadcast& b) {
+      const std::string s = dds::to_string(b.sender, sizeof b.sender);
+      isl.add(b.t_tt_ns, s,
+              fmt("%s,%lld,%s,%u,%d,%u", utc(b.t_tt_ns).c_str(), static_cast<long long>(b.t_tt_ns),
+                  s.c_str(), b.broadcast_seq, b.source, b.measurements._length));
+    });
+  };
+  const auto flush_all = [&](std::int64_t limit) {
+    for (auto& [id, sink] : nav) sink->flush(limit);
+    targets.flush(limit);
+    gnss.flush(limit);
+    isl.flush(limit);
+    links.flush(limit);
+    events.flush(limit);
+  };
+  const auto write_truth = [&]() {
+    io::OemFile oem;
+    oem.creation = sc.epoch;
+    for (const auto& s : sc.spacecraft) {
+      auto it = truth.find(s.id);
+      if (it != truth.end() && !it->second.samples.empty()) oem.segments.push_back(it->second);
+    }
+    if (!oem.segments.empty()) io::write_oem_file((dir / "truth.oem").string(), oem);
+  };
+
+  clock.announce_ready({}, 60.0);
+  while (auto tick = clock.wait_tick()) {
+    drain();
+    // Everything stamped before this tick's time is complete.
+    flush_all(tick->final_step ? std::numeric_limits<std::int64_t>::max() : tick->t_tt_ns);
+    if (tick->final_step) {
+      write_truth();
+      if (rejected > 0) std::fprintf(stderr, "[%s] rejected %zu malformed samples\n", opt.name.c_str(), rejected);
+      clock.done(tick->step);
+      return 0;
+    }
+    clock.done(tick->step);
+  }
+  // Stopped (signal) or timed out: keep what was recorded.
+  drain();
+  flush_all(std::numeric_limits<std::int64_t>::max());
+  write_truth();
+  std::fprintf(stderr, "[%s] stopped early; run folder holds what was recorded\n", opt.name.c_str());
+  return clock.timed_out() ? 1 : 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int code = 0;
+  const auto opt = runtime::parse_service_options(
+      argc, argv, "artms-recorder",
+      "Records every topic of a run into the run folder (truth.oem, nav/, gnss.csv, isl.csv,\n"
+      "links.csv, events.log), deterministically ordered.",
+      &code);
+  if (!opt) return code;
+  runtime::install_signal_handlers();
+  try {
+    return run(*opt);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "[%s] error: %s\n", opt->name.c_str(), e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,385 @@
+// artms-swarm: validates scenarios and runs a swarm (DESIGN.md section 7):
+// starts truth, camera renderer, crosslink emulator, one observer per
+// observer and the recorder; supervises them (a child that dies is named, the
+// others are stopped cleanly, the exit status is non-zero, no orphans); shows
+// progress; writes summary.json and timing.json into the run folder.
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "artms/io/duration.hpp"
+#include "artms/io/oem.hpp"
+#include "artms/runtime/runtime.hpp"
+
+namespace {
+
+using namespace artms;
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+volatile sig_atomic_t g_signal = 0;
+void on_signal(int s) { g_signal = s; }
+
+fs::path self_dir() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? fs::current_path() : exe.parent_path();
+}
+
+struct Child {
+  std::string name;
+  pid_t pid = -1;
+  bool running = false;
+  int exit_code = 0;     // exit status, or 128 + signal
+  bool expected_stop = false;
+};
+
+std::string binary_for(const std::string& service) {
+  if (service == "truth") return "artms-truth";
+  if (service == "camera-renderer") return "artms-camera-renderer";
+  if (service == "crosslink-emulator") return "artms-crosslink-emulator";
+  if (service == "recorder") return "artms-recorder";
+  if (service.rfind("observer-", 0) == 0) return "artms-observer";
+  throw std::logic_error("no binary for service " + service);
+}
+
+pid_t spawn(const fs::path& bin, const std::vector<std::string>& args, const fs::path& log) {
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    // Child: die with the launcher (no orphans), log to the run folder.
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() == 1) _exit(126);
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd >= 0) {
+      dup2(fd, STDOUT_FILENO);
+      dup2(fd, STDERR_FILENO);
+      close(fd);
+    }
+    std::vector<char*> argv;
+    std::string b = bin.string();
+    argv.push_back(b.data());
+    std::vector<std::string> copy = args;
+    for (auto& a : copy) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    execv(b.c_str(), argv.data());
+    std::perror("execv");
+    _exit(127);
+  }
+  return pid;
+}
+
+std::string hms(double s) {
+  const long t = static_cast<long>(std::llround(s));
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%02ld:%02ld:%02ld", t / 3600, (t / 60) % 60, t % 60);
+  return buf;
+}
+
+// Last data row of a CSV (header skipped), split on commas.
+std::vector<std::string> last_row(const fs::path& path) {
+  std::ifstream in(path);
+  std::string line, last;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    if (!line.empty()) last = line;
+  }
+  std::vector<std::string> cols;
+  std::stringstream ss(last);
+  std::string c;
+  while (std::getline(ss, c, ',')) cols.push_back(c);
+  return cols;
+}
+
+nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
+                            const std::vector<Child>& children, double sim_s) {
+  nlohmann::json j;
+  j["scenario"] = sc.name;
+  j["seed"] = sc.seed;
+  j["sim_duration_s"] = sim_s;
+  j["orbits"] = sim_s / sc.reference_period_s();
+  j["processes"] = nlohmann::json::array();
+  for (const auto& c : children) j["processes"].push_back({{"name", c.name}, {"exit_code", c.exit_code}});
+  std::map<std::string, io::OemSegment> truth;
+  if (fs::exists(dir / "truth.oem")) {
+    for (auto& s : io::read_oem_file((dir / "truth.oem").string()).segments) truth[s.object_name] = s;
+  }
+  j["observers"] = nlohmann::json::object();
+  for (const auto& o : sc.observers) {
+    nlohmann::json obs;
+    const auto row = last_row(dir / "nav" / (o.spacecraft + ".csv"));
+    obs["mode"] = row.size() > 2 ? std::stoi(row[2]) : o.mode;
+    obs["mode_requested"] = o.mode;
+    nlohmann::json abs = {{"final_pos_error_m", nullptr}, {"final_pos_sigma_m", nullptr}};
+    if (row.size() >= 17 && row[3] == "0") {
+      const astro::TimeTT t{std::stoll(row[1])};
+      const astro::Vec3 r(std::stod(row[5]), std::stod(row[6]), std::stod(row[7]));
+      const double sigma = std::sqrt(std::pow(std::stod(row[11]), 2) + std::pow(std::stod(row[12]), 2) +
+                                     std::pow(std::stod(row[13]), 2));
+      abs["final_pos_sigma_m"] = sigma;
+      auto it = truth.find(o.spacecraft);
+      if (it != truth.end()) {
+        for (const auto& s : it->second.samples) {
+          if (s.t == t) abs["final_pos_error_m"] = (s.x_eci.r_m - r).norm();
+        }
+      }
+    }
+    obs["absolute"] = abs;
+    obs["targets"] = nlohmann::json::object();
+    j["observers"][o.spacecraft] = obs;
+  }
+  // Crosslink accounting (the emulator arrives with the crosslink issue).
+  long sent = -1;
+  {
+    std::ifstream in(dir / "isl.csv");
+    std::string line;
+    while (std::getline(in, line)) ++sent;
+  }
+  j["isl"] = {{"sent", std::max(0L, sent)}, {"delivered", 0},
+              {"dropped", {{"outage", 0}, {"loss", 0}, {"range", 0}}}};
+  return j;
+}
+
+int cmd_validate(const std::string& path) {
+  const auto diags = config::validate_scenario_file(path);
+  for (const auto& d : diags) std::cerr << d.format() << "\n";
+  if (!diags.empty()) {
+    std::cerr << "artms-swarm: " << path << ": " << diags.size() << " error(s)\n";
+    return 1;
+  }
+  std::cout << path << ": valid\n";
+  return 0;
+}
+
+int cmd_run(const std::string& scenario_path, const std::string& duration, double orbits,
+            std::optional<std::uint64_t> seed, const std::string& rate_text, std::string out,
+            double step_timeout_s) {
+  config::Scenario sc;
+  try {
+    sc = config::load_scenario(scenario_path);
+  } catch (const config::ScenarioError& e) {
+    std::cerr << e.what();
+    return 2;
+  }
+  if (!duration.empty()) sc.duration_s = io::parse_duration_s(duration);
+  if (orbits > 0.0) sc.duration_s = std::round(orbits * sc.reference_period_s() / sc.step_s) * sc.step_s;
+  if (seed) sc.seed = *seed;
+  double rate = 0.0;
+  if (rate_text != "max") {
+    char* end = nullptr;
+    rate = std::strtod(rate_text.c_str(), &end);
+    if (*end != '\0' || !(rate > 0.0)) {
+      std::cerr << "artms-swarm: --rate must be 'max' or a positive number, got '" << rate_text << "'\n";
+      return 2;
+    }
+  }
+  if (out.empty()) {
+    char stamp[32];
+    const std::time_t now = std::time(nullptr);
+    std::strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%S", std::gmtime(&now));
+    out = "runs/" + sc.name + "-" + stamp;
+  }
+  const fs::path dir = fs::absolute(out);
+  fs::create_directories(dir / "logs");
+  for (const char* stale : {"summary.json", "timing.json", "truth.oem"}) fs::remove(dir / stale);
+
+  // Each run gets its own DDS domain so that concurrent runs never meet.
+  if (std::getenv("ARTMS_DDS_DOMAIN") == nullptr) {
+    setenv("ARTMS_DDS_DOMAIN", std::to_string(1 + getpid() % 200).c_str(), 1);
+  }
+  dds::ensure_loopback_config();
+
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  // The launcher follows the clock for progress (a reader of the tick topic).
+  dds::Participant participant(dds::domain_from_environment());
+  runtime::TopicSet topics(participant);
+  dds::Reader<artms_msg_ClockTick> ticks(participant, topics.clock_tick, runtime::clock_qos());
+  dds::WaitSet ws(participant);
+  ws.attach(ticks.handle());
+
+  const std::vector<std::string> services = config::services(sc);
+  std::vector<Child> children;
+  const std::string dur = std::to_string(sc.duration_s);
+  const fs::path bin_dir = self_dir();
+  const auto wall0 = Clock::now();
+  for (const auto& name : services) {
+    std::vector<std::string> args = {"--scenario", fs::absolute(scenario_path).string(),
+                                     "--out",      dir.string(),
+                                     "--name",     name,
+                                     "--duration", dur,
+                                     "--seed",     std::to_string(sc.seed),
+                                     "--step-timeout", std::to_string(step_timeout_s)};
+    if (rate > 0.0) {
+      args.push_back("--rate");
+      args.push_back(std::to_string(rate));
+    }
+    Child c;
+    c.name = name;
+    c.pid = spawn(bin_dir / binary_for(name), args, dir / "logs" / (name + ".log"));
+    c.running = true;
+    children.push_back(c);
+  }
+  std::fprintf(stderr, "artms-swarm: %s, %zu processes, %s simulated, seed %llu, DDS domain %s\n",
+               sc.name.c_str(), children.size(), hms(sc.duration_s).c_str(),
+               static_cast<unsigned long long>(sc.seed), std::getenv("ARTMS_DDS_DOMAIN"));
+
+  const bool tty = isatty(STDERR_FILENO) != 0;
+  double sim_s = 0.0;
+  std::string failure;
+  auto last_print = Clock::now() - std::chrono::seconds(10);
+  const auto stop_all = [&](int sig) {
+    for (auto& c : children) {
+      if (c.running) {
+        c.expected_stop = true;
+        kill(c.pid, sig);
+      }
+    }
+  };
+  bool stopping = false;
+  Clock::time_point stop_deadline{};
+  for (;;) {
+    // Reap children.
+    int status = 0;
+    pid_t pid;
+    while ((pid = waitpid(-1, &status, WNOHANG)) > 0) {
+      for (auto& c : children) {
+        if (c.pid != pid) continue;
+        c.running = false;
+        c.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        if (c.exit_code != 0 && failure.empty() && !stopping) {
+          failure = c.name + (WIFEXITED(status) ? " exited with code " + std::to_string(c.exit_code)
+                                                : " was killed by signal " + std::to_string(WTERMSIG(status)));
+          std::fprintf(stderr, "%sartms-swarm: %s; stopping the other processes\n", tty ? "\n" : "",
+                       failure.c_str());
+          stopping = true;
+          stop_deadline = Clock::now() + std::chrono::seconds(15);
+          stop_all(SIGTERM);
+        }
+      }
+    }
+    bool any = false;
+    for (const auto& c : children) any = any || c.running;
+    if (!any) break;
+    if (g_signal != 0 && !stopping) {
+      failure = std::string("interrupted by signal ") + std::to_string(g_signal);
+      std::fprintf(stderr, "%sartms-swarm: %s; stopping every process (outputs are flushed)\n",
+                   tty ? "\n" : "", failure.c_str());
+      stopping = true;
+      stop_deadline = Clock::now() + std::chrono::seconds(15);
+      stop_all(SIGTERM);
+    }
+    if (stopping && Clock::now() > stop_deadline) stop_all(SIGKILL);
+    // Progress from the clock.
+    ticks.take_each([&](const artms_msg_ClockTick& t) {
+      sim_s = std::max(sim_s, astro::seconds_between(sc.epoch, astro::TimeTT{t.t_tt_ns}));
+    });
+    const auto now = Clock::now();
+    if (now - last_print > std::chrono::milliseconds(tty ? 200 : 5000)) {
+      last_print = now;
+      const double wall = std::chrono::duration<double>(now - wall0).count();
+      const double rtf = wall > 0 ? sim_s / wall : 0.0;
+      const double frac = sc.duration_s > 0 ? sim_s / sc.duration_s : 1.0;
+      const double eta = rtf > 0 ? (sc.duration_s - sim_s) / rtf : 0.0;
+      if (tty) {
+        const int width = 30, filled = static_cast<int>(frac * width);
+        std::fprintf(stderr, "\r[%s%s] %5.1f%%  sim %s / %s  %.0fx real time  ETA %s   ",
+                     std::string(static_cast<std::size_t>(filled), '#').c_str(),
+                     std::string(static_cast<std::size_t>(width - filled), '.').c_str(), 100 * frac,
+                     hms(sim_s).c_str(), hms(sc.duration_s).c_str(), rtf, hms(eta).c_str());
+      } else {
+        std::fprintf(stderr, "artms-swarm: sim %s / %s (%.0f%%), %.0fx real time, ETA %s\n",
+                     hms(sim_s).c_str(), hms(sc.duration_s).c_str(), 100 * frac, rtf, hms(eta).c_str());
+      }
+    }
+    ws.wait(0.1);
+  }
+  const double wall = std::chrono::duration<double>(Clock::now() - wall0).count();
+  if (tty) std::fprintf(stderr, "\n");
+
+  bool ok = failure.empty();
+  for (const auto& c : children) ok = ok && c.exit_code == 0;
+  const nlohmann::json summary = make_summary(sc, dir, children, ok ? sc.duration_s : sim_s);
+  std::ofstream(dir / "summary.json") << summary.dump(2) << "\n";
+  const nlohmann::json timing = {{"wall_time_s", wall},
+                                 {"sim_time_s", ok ? sc.duration_s : sim_s},
+                                 {"real_time_factor", wall > 0 ? (ok ? sc.duration_s : sim_s) / wall : 0.0},
+                                 {"processes", children.size()}};
+  std::ofstream(dir / "timing.json") << timing.dump(2) << "\n";
+
+  // Summary table.
+  std::printf("\n%-22s %s\n", "process", "exit");
+  for (const auto& c : children) std::printf("%-22s %d\n", c.name.c_str(), c.exit_code);
+  std::printf("\n%-8s %-6s %-18s %-18s\n", "observer", "mode", "final pos err [m]", "final pos 1-sigma [m]");
+  for (const auto& [id, o] : summary["observers"].items()) {
+    const auto& a = o["absolute"];
+    std::printf("%-8s %-6d %-18s %-18s\n", id.c_str(), o["mode"].get<int>(),
+                a["final_pos_error_m"].is_null() ? "-" : std::to_string(a["final_pos_error_m"].get<double>()).c_str(),
+                a["final_pos_sigma_m"].is_null() ? "-" : std::to_string(a["final_pos_sigma_m"].get<double>()).c_str());
+  }
+  std::printf("\nsimulated %s in %.1f s (%.0fx real time)\nrun folder: %s\n", hms(sim_s).c_str(), wall,
+              wall > 0 ? sim_s / wall : 0.0, dir.c_str());
+  if (!ok) {
+    std::fprintf(stderr, "artms-swarm: run failed: %s\n",
+                 failure.empty() ? "a process exited with a non-zero code" : failure.c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ARTMS swarm emulator: validate scenarios and run swarms of ARTMS observers.",
+               "artms-swarm"};
+  app.require_subcommand(1);
+  auto* validate = app.add_subcommand("validate", "check a scenario file; every error names file, line, column and field");
+  std::string vpath;
+  validate->add_option("scenario", vpath, "scenario YAML")->required();
+  auto* run = app.add_subcommand("run", "run a scenario end to end and record it");
+  std::string rpath, duration, out, rate = "max";
+  double orbits = 0.0, step_timeout = 120.0;
+  std::uint64_t seed = 0;
+  run->add_option("scenario", rpath, "scenario YAML")->required();
+  auto* d = run->add_option("--duration", duration, "simulated span (6h, 1d, seconds)");
+  auto* o = run->add_option("--orbits", orbits, "simulated span in orbits of the first observer");
+  d->excludes(o);
+  auto* s = run->add_option("--seed", seed, "random seed (overrides the scenario)");
+  run->add_option("--rate", rate, "max (lock-step, as fast as possible) or X times real time")->capture_default_str();
+  run->add_option("--out", out, "run folder (default runs/<scenario>-<UTC time>)");
+  run->add_option("--step-timeout", step_timeout, "seconds a process may take for one step")->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (*validate) return cmd_validate(vpath);
+    return cmd_run(rpath, duration, orbits, s->count() ? std::optional<std::uint64_t>(seed) : std::nullopt,
+                   rate, out, step_timeout);
+  } catch (const std::exception& e) {
+    std::cerr << "artms-swarm: error: " << e.what() << "\n";
+    return 2;
+  }
+}
