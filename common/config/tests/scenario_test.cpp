@@ -1,1 +1,523 @@
-// tests
+// Scenario files: the Starling scenarios reproduce Table 2 of the paper, the
+// derived quantities, and one test per validation case (file, line, field
+// path and message checked). Bad files are written under ::testing::TempDir().
+#include "artms/config/scenario.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "artms/astro/constants.hpp"
+#include "artms/astro/elements.hpp"
+#include "artms/astro/roe.hpp"
+#include "artms/astro/time.hpp"
+
+namespace artms::config {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string scenario_path(const std::string& file) {
+  return std::string(ARTMS_SCENARIO_DIR) + "/" + file;
+}
+
+// Writes `text` to TempDir()/artms_config_tests/name and returns the path.
+std::string write_file(const std::string& name, const std::string& text) {
+  const auto dir = std::filesystem::path(::testing::TempDir()) / "artms_config_tests";
+  std::filesystem::create_directories(dir);
+  const auto path = dir / name;
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+  return path.string();
+}
+
+std::string dump(const std::vector<Diagnostic>& diags) {
+  std::ostringstream os;
+  for (const auto& d : diags) os << "  " << d.format() << "\n";
+  return os.str();
+}
+
+// Validates `text` (as file `name`) and checks that exactly one diagnostic
+// carries `field`, at `line`, with `phrase` in its message, and that its
+// formatted form starts with "<path>:<line>:<col>: <field>: ".
+Diagnostic expect_one(const std::string& name, const std::string& text, int line,
+                      const std::string& field, const std::string& phrase) {
+  const std::string path = write_file(name, text);
+  const auto diags = validate_scenario_file(path);
+  std::vector<Diagnostic> hits;
+  for (const auto& d : diags) {
+    if (d.field == field) hits.push_back(d);
+  }
+  EXPECT_EQ(hits.size(), 1u) << "no single diagnostic for '" << field << "'; got:\n" << dump(diags);
+  if (hits.size() != 1) return {};
+  const Diagnostic& d = hits.front();
+  EXPECT_EQ(d.file, path);
+  EXPECT_EQ(d.line, line) << d.format();
+  EXPECT_GT(d.column, 0) << d.format();
+  EXPECT_THAT(d.message, HasSubstr(phrase)) << d.format();
+  const std::string prefix =
+      path + ":" + std::to_string(line) + ":" + std::to_string(d.column) + ": " + field + ": ";
+  EXPECT_EQ(d.format().rfind(prefix, 0), 0u) << d.format();
+  EXPECT_THAT(d.format(), HasSubstr(name));
+  return d;
+}
+
+// A valid two-spacecraft scenario; the bad files below are edits of it.
+// Line numbers: 1 name, 2 epoch, 3 duration, 4 spacecraft, 5-6 SV4,
+// 7-8 SV2, 9 observers, 10-11 SV4 observer.
+const std::string kValid = R"(name: test-swarm
+epoch: 2024-05-08T00:00:00Z
+duration: 6h
+spacecraft:
+  - id: SV4
+    qns: {a_km: 6943, ex: 0.0001, ey: 0.0016, i_deg: 99.4, raan_deg: -38.0, u_deg: -153.0}
+  - id: SV2
+    relative: {chief: SV4, roe_m: [23, -52266, -471, -523, 35, 1811]}
+observers:
+  - spacecraft: SV4
+    camera: {cadence: 60s}
+)";
+
+// --- The Starling scenarios (Table 2) ------------------------------------------
+
+struct Table2Case {
+  const char* file;
+  const char* epoch_utc;
+  std::array<double, 6> sv4;  // a_km, ex, ey, i_deg, raan_deg, u_deg
+  std::array<double, 6> sv2;  // a*droe in m w.r.t. SV4
+  std::array<double, 6> sv3;
+};
+
+// Table 2 of the StarFOX paper, copied from the .tex independently of the
+// YAML files.
+const Table2Case kTable2[] = {
+    {"starling_it.yaml",
+     "2024-02-05T00:00:00Z",
+     {6945, 0.0007, 0.0014, 99.4, -152.3, -41.8},
+     {21, -124350, 110, 202, 79, 1005},
+     {-1, -79328, 42, 452, 36, 827}},
+    {"starling_pse.yaml",
+     "2024-05-08T00:00:00Z",
+     {6943, 0.0001, 0.0016, 99.4, -38.0, -153.0},
+     {23, -52266, -471, -523, 35, 1811},
+     {-30, 155320, -297, -315, 16, 1144}},
+};
+
+TEST(StarlingScenarios, BothFilesLoad) {
+  for (const auto& c : kTable2) {
+    SCOPED_TRACE(c.file);
+    const Scenario s = load_scenario(scenario_path(c.file));
+    EXPECT_EQ(s.epoch, astro::tt_from_utc_string(c.epoch_utc));
+    EXPECT_DOUBLE_EQ(s.duration_s, 19.0 * 3600.0);
+    EXPECT_DOUBLE_EQ(s.step_s, 60.0);
+    EXPECT_EQ(s.seed, 7u);
+    ASSERT_EQ(s.spacecraft.size(), 3u);
+    EXPECT_EQ(s.spacecraft[0].id, "SV4");
+    EXPECT_EQ(s.spacecraft[0].orbit.kind, InitialOrbit::Kind::kQns);
+    for (const auto* id : {"SV2", "SV3"}) {
+      const auto& sc = s.spacecraft_by_id(id);
+      EXPECT_EQ(sc.orbit.kind, InitialOrbit::Kind::kRelative) << id;
+      EXPECT_EQ(sc.orbit.chief, "SV4") << id;
+    }
+    ASSERT_EQ(s.observers.size(), 1u);
+    const auto& o = s.observers[0];
+    EXPECT_EQ(o.spacecraft, "SV4");
+    EXPECT_EQ(o.mode, 1);
+    EXPECT_EQ(o.camera.boresight, astro::Boresight::kMinusVelocity);
+    EXPECT_DOUBLE_EQ(o.camera.cadence_s, 60.0);
+    EXPECT_TRUE(o.gnss.enabled);
+    EXPECT_FALSE(s.crosslink.use_remote_gnss);
+    EXPECT_DOUBLE_EQ(s.tuning.sod.bearing_sigma_arcsec, 40.0);
+    EXPECT_DOUBLE_EQ(s.tuning.bod.period_s, 5400.0);
+    EXPECT_EQ(s.source_path, scenario_path(c.file));
+    EXPECT_TRUE(validate_scenario_file(scenario_path(c.file)).empty());
+  }
+  EXPECT_EQ(load_scenario(scenario_path("starling_it.yaml")).name, "starling-it");
+  EXPECT_EQ(load_scenario(scenario_path("starling_pse.yaml")).name, "starling-pse");
+}
+
+TEST(StarlingScenarios, Sv4ElementsMatchTable2) {
+  for (const auto& c : kTable2) {
+    SCOPED_TRACE(c.file);
+    const Scenario s = load_scenario(scenario_path(c.file));
+    const astro::QnsElements q = astro::qns_from_cartesian(s.initial_state_eci("SV4"));
+    EXPECT_NEAR(q.a_m, c.sv4[0] * 1e3, 1e-6);
+    EXPECT_NEAR(q.ex, c.sv4[1], 1e-12);
+    EXPECT_NEAR(q.ey, c.sv4[2], 1e-12);
+    EXPECT_NEAR(q.i_rad, c.sv4[3] * astro::kDegToRad, 1e-12);
+    EXPECT_NEAR(astro::wrap_pi(q.raan_rad - c.sv4[4] * astro::kDegToRad), 0.0, 1e-12);
+    EXPECT_NEAR(astro::wrap_pi(q.u_rad - c.sv4[5] * astro::kDegToRad), 0.0, 1e-12);
+  }
+}
+
+TEST(StarlingScenarios, Table2RoeRoundTripThroughCartesian) {
+  for (const auto& c : kTable2) {
+    const Scenario s = load_scenario(scenario_path(c.file));
+    const astro::QnsElements sv4 = astro::qns_from_cartesian(s.initial_state_eci("SV4"));
+    const std::pair<const char*, const std::array<double, 6>*> targets[] = {{"SV2", &c.sv2},
+                                                                            {"SV3", &c.sv3}};
+    for (const auto& [id, expected] : targets) {
+      SCOPED_TRACE(std::string(c.file) + " " + id);
+      const astro::QnsElements t = astro::qns_from_cartesian(s.initial_state_eci(id));
+      const astro::Vec6 a_droe = sv4.a_m * astro::roe_from_qns(sv4, t).as_vector();
+      for (int k = 0; k < 6; ++k) {
+        EXPECT_NEAR(a_droe[k], (*expected)[static_cast<std::size_t>(k)], 1e-6) << "component " << k;
+      }
+    }
+  }
+}
+
+TEST(StarlingScenarios, ReferencePeriodIsSv4Period) {
+  const Scenario s = load_scenario(scenario_path("starling_it.yaml"));
+  EXPECT_NEAR(s.reference_period_s(), astro::orbit_period_s(6945e3), 1e-9);
+  // 19 h is about 12 orbits.
+  EXPECT_NEAR(s.duration_s / s.reference_period_s(), 12.0, 0.2);
+}
+
+// --- Derived quantities ---------------------------------------------------------
+
+TEST(Scenario, ServicesListInStartOrder) {
+  const Scenario s = load_scenario(scenario_path("starling_pse.yaml"));
+  EXPECT_EQ(services(s), (std::vector<std::string>{"truth", "camera-renderer", "crosslink-emulator",
+                                                   "observer-SV4", "recorder"}));
+  const std::string two = kValid + R"(  - spacecraft: SV2
+    mode: 3
+)";
+  const Scenario s2 = load_scenario(write_file("two_observers.yaml", two));
+  EXPECT_EQ(services(s2),
+            (std::vector<std::string>{"truth", "camera-renderer", "crosslink-emulator",
+                                      "observer-SV4", "observer-SV2", "recorder"}));
+}
+
+TEST(Scenario, SpacecraftByIdThrowsNamingTheId) {
+  const Scenario s = load_scenario(scenario_path("starling_pse.yaml"));
+  EXPECT_EQ(s.spacecraft_by_id("SV3").id, "SV3");
+  try {
+    (void)s.spacecraft_by_id("SV1");
+    FAIL() << "expected std::out_of_range";
+  } catch (const std::out_of_range& e) {
+    EXPECT_THAT(e.what(), HasSubstr("'SV1'"));
+  }
+  EXPECT_THROW((void)s.initial_state_eci("SV9"), std::out_of_range);
+}
+
+TEST(Scenario, RelativeChainResolvesThroughEachChief) {
+  const std::string text = kValid + R"(  - spacecraft: SV2
+    mode: 1
+)";
+  std::string chained = text;
+  chained.replace(chained.find("observers:"), 0,
+                  "  - id: SV3\n    relative: {chief: SV2, roe_m: [5, 1000, 20, -30, 40, 50]}\n");
+  const Scenario s = load_scenario(write_file("chain.yaml", chained));
+  const auto q4 = astro::qns_from_cartesian(s.initial_state_eci("SV4"));
+  const auto q2 = astro::qns_from_cartesian(s.initial_state_eci("SV2"));
+  const auto q3 = astro::qns_from_cartesian(s.initial_state_eci("SV3"));
+  // SV3's ROE are relative to SV2, scaled by SV2's semi-major axis.
+  const astro::Vec6 a_droe_32 = q2.a_m * astro::roe_from_qns(q2, q3).as_vector();
+  astro::Vec6 expected;
+  expected << 5, 1000, 20, -30, 40, 50;
+  EXPECT_LT((a_droe_32 - expected).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_NEAR(q2.a_m, q4.a_m * (1.0 + 23.0 / q4.a_m), 1e-6);
+}
+
+TEST(Scenario, KeplerOrbitAndDefaults) {
+  const std::string text = R"(name: kepler
+epoch: 2024-05-08
+duration: 5400
+spacecraft:
+  - id: A
+    kepler: {a_km: 7000, e: 0.001, i_deg: 98, raan_deg: 10, argp_deg: 20, M_deg: 30}
+observers:
+  - spacecraft: A
+)";
+  const Scenario s = load_scenario(write_file("kepler.yaml", text));
+  const auto oe = astro::kepler_from_cartesian(s.initial_state_eci("A"));
+  EXPECT_NEAR(oe.a_m, 7000e3, 1e-5);
+  EXPECT_NEAR(oe.e, 0.001, 1e-12);
+  EXPECT_NEAR(oe.M_rad, 30.0 * astro::kDegToRad, 1e-9);
+  // Everything not given takes the struct defaults.
+  const Scenario d;
+  EXPECT_EQ(s.seed, d.seed);
+  EXPECT_DOUBLE_EQ(s.step_s, d.step_s);
+  EXPECT_EQ(s.force_model.gravity_degree, d.force_model.gravity_degree);
+  EXPECT_DOUBLE_EQ(s.spacecraft[0].properties.mass_kg, dynamics::SpacecraftProperties{}.mass_kg);
+  const ObserverConfig od;
+  EXPECT_EQ(s.observers[0].mode, od.mode);
+  EXPECT_EQ(s.observers[0].camera.model, od.camera.model);
+  EXPECT_EQ(s.observers[0].camera.boresight, od.camera.boresight);
+  EXPECT_DOUBLE_EQ(s.crosslink.max_range_m, CrosslinkConfig{}.max_range_m);
+  EXPECT_DOUBLE_EQ(s.tuning.sod.eps_ambig, SodTuning{}.eps_ambig);
+  EXPECT_TRUE(s.maneuvers.empty());
+  EXPECT_TRUE(s.faults.empty());
+}
+
+TEST(Scenario, InstantsAsUtcOrOffsetFromEpoch) {
+  const std::string text = kValid + R"(maneuvers:
+  - {spacecraft: SV2, epoch: 2h, dv_rtn_mps: [0, 0.01, 0]}
+  - {spacecraft: SV2, epoch: "2024-05-08T03:00:00Z", dv_rtn_mps: [0, -0.01, 0]}
+crosslink:
+  outages: [{from: SV4, start: 1h, end: 90m}]
+)";
+  const Scenario s = load_scenario(write_file("instants.yaml", text));
+  ASSERT_EQ(s.maneuvers.size(), 2u);
+  EXPECT_EQ(s.maneuvers[0].epoch, s.epoch.plus_seconds(7200.0));
+  EXPECT_EQ(s.maneuvers[1].epoch, s.epoch.plus_seconds(10800.0));
+  EXPECT_DOUBLE_EQ(s.maneuvers[0].dv_rtn_mps.y(), 0.01);
+  ASSERT_EQ(s.crosslink.outages.size(), 1u);
+  EXPECT_EQ(s.crosslink.outages[0].from, "SV4");
+  EXPECT_EQ(s.crosslink.outages[0].to, "*");
+  EXPECT_EQ(s.crosslink.outages[0].window.end, s.epoch.plus_seconds(5400.0));
+}
+
+TEST(Scenario, GravityDegreeAloneMeansSquareField) {
+  const Scenario s =
+      load_scenario(write_file("grav.yaml", kValid + "force_model: {gravity_degree: 20}\n"));
+  EXPECT_EQ(s.force_model.gravity_degree, 20);
+  EXPECT_EQ(s.force_model.gravity_order, 20);
+}
+
+TEST(Scenario, Mode4TurnsGnssOffByDefault) {
+  const Scenario s = load_scenario(
+      write_file("mode4.yaml", kValid + "    mode: 4\n  - spacecraft: SV2\n    mode: 4\n"));
+  ASSERT_EQ(s.observers.size(), 2u);
+  EXPECT_FALSE(s.observers[0].gnss.enabled);
+  EXPECT_FALSE(s.observers[1].gnss.enabled);
+}
+
+// --- Validation: one test per case ---------------------------------------------
+
+TEST(ScenarioValidation, SyntaxErrorGivesYamlLineAndColumn) {
+  const std::string text = R"(name: broken
+epoch: 2024-05-08T00:00:00Z
+spacecraft: [
+  {id: SV4
+observers: []
+)";
+  const std::string path = write_file("syntax.yaml", text);
+  const auto diags = validate_scenario_file(path);
+  ASSERT_EQ(diags.size(), 1u) << dump(diags);
+  EXPECT_EQ(diags[0].file, path);
+  EXPECT_GE(diags[0].line, 4);
+  EXPECT_THAT(diags[0].message, HasSubstr("YAML syntax error"));
+  EXPECT_THAT(diags[0].format(),
+              HasSubstr("syntax.yaml:" + std::to_string(diags[0].line) + ":" +
+                        std::to_string(diags[0].column) + ": YAML syntax error"));
+}
+
+TEST(ScenarioValidation, WrongTypeNamesFieldAndExpectation) {
+  std::string text = kValid;
+  text.replace(text.find("a_km: 6943"), 10, "a_km: big");
+  expect_one("wrong_type.yaml", text, 6, "spacecraft[0].qns.a_km", "expected a number, got 'big'");
+}
+
+TEST(ScenarioValidation, QuotedNumberIsWrongType) {
+  std::string text = kValid;
+  text.replace(text.find("ex: 0.0001"), 10, "ex: \"0.0001\"");
+  expect_one("quoted.yaml", text, 6, "spacecraft[0].qns.ex", "expected a number, got the string");
+}
+
+TEST(ScenarioValidation, MissingRequiredField) {
+  std::string text = kValid;
+  text.erase(text.find("epoch:"), std::string("epoch: 2024-05-08T00:00:00Z\n").size());
+  expect_one("missing.yaml", text, 1, "epoch", "missing required field 'epoch'");
+}
+
+TEST(ScenarioValidation, MissingSpacecraftIdInList) {
+  std::string text = kValid;
+  text.replace(text.find("  - id: SV2\n    relative"), 11, "  - mass_kg: 10");
+  // SV2 now has no id (line 7): reported at its mapping.
+  expect_one("missing_id.yaml", text, 7, "spacecraft[1].id", "missing required field 'id'");
+}
+
+TEST(ScenarioValidation, EccentricityOutOfRange) {
+  std::string text = kValid;
+  text.replace(
+      text.find("qns: {a_km: 6943"),
+      std::string(
+          "qns: {a_km: 6943, ex: 0.0001, ey: 0.0016, i_deg: 99.4, raan_deg: -38.0, u_deg: -153.0}")
+          .size(),
+      "kepler: {a_km: 7000, e: 1.2, i_deg: 98, raan_deg: 0, argp_deg: 0, M_deg: 0}");
+  expect_one("ecc.yaml", text, 6, "spacecraft[0].kepler.e",
+             "out of range: expected 0 <= e < 1, got 1.2");
+}
+
+TEST(ScenarioValidation, NegativeEccentricityOutOfRange) {
+  std::string text = kValid;
+  text.replace(
+      text.find("qns: {a_km: 6943"),
+      std::string(
+          "qns: {a_km: 6943, ex: 0.0001, ey: 0.0016, i_deg: 99.4, raan_deg: -38.0, u_deg: -153.0}")
+          .size(),
+      "kepler: {a_km: 7000, e: -0.1, i_deg: 98, raan_deg: 0, argp_deg: 0, M_deg: 0}");
+  expect_one("ecc_neg.yaml", text, 6, "spacecraft[0].kepler.e", "out of range");
+}
+
+TEST(ScenarioValidation, SemiMajorAxisBelowEarthPlus100Km) {
+  std::string text = kValid;
+  text.replace(text.find("a_km: 6943"), 10, "a_km: 6400");
+  expect_one("low.yaml", text, 6, "spacecraft[0].qns.a_km", "Earth radius + 100 km");
+}
+
+TEST(ScenarioValidation, NegativeCadence) {
+  std::string text = kValid;
+  text.replace(text.find("cadence: 60s"), 12, "cadence: -60");
+  expect_one("cadence.yaml", text, 11, "observers[0].camera.cadence",
+             "out of range: expected cadence > 0 s, got -60 s");
+}
+
+TEST(ScenarioValidation, ZeroCadence) {
+  std::string text = kValid;
+  text.replace(text.find("cadence: 60s"), 12, "cadence: 0s");
+  expect_one("cadence0.yaml", text, 11, "observers[0].camera.cadence", "expected cadence > 0 s");
+}
+
+TEST(ScenarioValidation, NanAndInfinityRejected) {
+  std::string text = kValid;
+  text.replace(text.find("ey: 0.0016"), 10, "ey: .nan");
+  text.replace(text.find("roe_m: [23"), 10, "roe_m: [.inf");
+  expect_one("nan.yaml", text, 6, "spacecraft[0].qns.ey", "expected a finite number");
+  expect_one("nan.yaml", text, 8, "spacecraft[1].relative.roe_m[0]", "expected a finite number");
+}
+
+TEST(ScenarioValidation, ProbabilityOutsideUnitInterval) {
+  const std::string text = kValid + R"(crosslink:
+  loss_probability: 1.5
+)";
+  expect_one("prob.yaml", text, 13, "crosslink.loss_probability",
+             "out of range: expected 0 <= loss_probability <= 1, got 1.5");
+}
+
+TEST(ScenarioValidation, ModeOutsideZeroToFour) {
+  const std::string text = kValid + "    mode: 5\n";
+  expect_one("mode.yaml", text, 12, "observers[0].mode", "expected an integer 0 <= mode <= 4");
+}
+
+TEST(ScenarioValidation, UnknownSpacecraftReference) {
+  std::string text = kValid;
+  text.replace(text.find("spacecraft: SV4\n    camera"), 15, "spacecraft: SV9");
+  text.replace(text.find("chief: SV4"), 10, "chief: SV7");
+  text += R"(maneuvers:
+  - {spacecraft: SV5, epoch: 1h, dv_rtn_mps: [0, 0, 0]}
+crosslink:
+  outages:
+    - {from: SV4, to: SV6, start: 1h, end: 2h}
+)";
+  expect_one("ref_obs.yaml", text, 10, "observers[0].spacecraft",
+             "unknown spacecraft 'SV9' as observer (spacecraft defined: SV4, SV2)");
+  expect_one("ref_chief.yaml", text, 8, "spacecraft[1].relative.chief", "unknown spacecraft 'SV7'");
+  expect_one("ref_mnv.yaml", text, 13, "maneuvers[0].spacecraft", "unknown spacecraft 'SV5'");
+  expect_one("ref_link.yaml", text, 16, "crosslink.outages[0].to", "unknown spacecraft 'SV6'");
+}
+
+TEST(ScenarioValidation, DuplicateSpacecraftId) {
+  std::string text = kValid;
+  text.replace(text.find("id: SV2"), 7, "id: SV4");
+  expect_one("dup.yaml", text, 7, "spacecraft[1].id",
+             "duplicate spacecraft id 'SV4' (first defined at line 5)");
+}
+
+TEST(ScenarioValidation, DuplicateObserver) {
+  const std::string text = kValid + "  - spacecraft: SV4\n";
+  expect_one("dup_obs.yaml", text, 12, "observers[1].spacecraft",
+             "duplicate observer 'SV4' (already an observer at line 10)");
+}
+
+TEST(ScenarioValidation, UnknownKeyAtEveryLevel) {
+  std::string text = kValid;
+  text.replace(text.find("cadence: 60s"), 12, "cadense: 60s");
+  text += "colour: blue\n";
+  expect_one("unknown_key.yaml", text, 11, "observers[0].camera.cadense",
+             "unknown key 'cadense' (did you mean 'cadence'?)");
+  expect_one("unknown_key.yaml", text, 12, "colour", "unknown key 'colour'");
+}
+
+TEST(ScenarioValidation, RelativeChainWithCycle) {
+  std::string text = kValid;
+  text.replace(text.find("chief: SV4"), 10, "chief: SV3");
+  text.replace(text.find("observers:"), 0,
+               "  - id: SV3\n    relative: {chief: SV2, roe_m: [0, 1000, 0, 0, 0, 0]}\n");
+  expect_one("cycle.yaml", text, 8, "spacecraft[1].relative.chief",
+             "relative orbit chain has a cycle: SV2 -> SV3 -> SV2");
+}
+
+TEST(ScenarioValidation, OutageEndNotAfterStart) {
+  const std::string text = kValid + R"(    gnss:
+      outages:
+        - {start: 2h, end: 1h}
+)";
+  expect_one("outage.yaml", text, 14, "observers[0].gnss.outages[0].end",
+             "expected the window's end after its start");
+}
+
+TEST(ScenarioValidation, ManeuverOutsideScenarioSpan) {
+  const std::string text = kValid + R"(maneuvers:
+  - spacecraft: SV2
+    epoch: 2024-05-08T07:00:00Z
+    dv_rtn_mps: [0, 0.05, 0]
+)";
+  expect_one("maneuver.yaml", text, 14, "maneuvers[0].epoch", "outside the scenario span");
+}
+
+TEST(ScenarioValidation, NavigationModeConsistency) {
+  // Line 12: mode 4 (multi-observer) alone; line 13: with GNSS on.
+  const std::string text = kValid + R"(    mode: 4
+    gnss: {enabled: true}
+)";
+  expect_one("mode4_gnss.yaml", text, 13, "observers[0].gnss.enabled",
+             "mode 4 navigates without GNSS");
+  expect_one("mode4_alone.yaml", text, 12, "observers[0].mode",
+             "expected at least two observers, got 1");
+}
+
+TEST(ScenarioValidation, ExactlyOneOrbitPerSpacecraft) {
+  std::string text = kValid;
+  text.replace(text.find("    relative:"), 0,
+               "    kepler: {a_km: 7000, e: 0, i_deg: 98, raan_deg: 0, argp_deg: 0, M_deg: 0}\n");
+  expect_one("two_orbits.yaml", text, 9, "spacecraft[1].relative",
+             "expected exactly one of kepler, qns or relative");
+}
+
+TEST(ScenarioValidation, MissingFileIsReported) {
+  const auto diags = validate_scenario_file("/nonexistent/dir/none.yaml");
+  ASSERT_EQ(diags.size(), 1u);
+  EXPECT_THAT(diags[0].format(), HasSubstr("none.yaml: cannot open scenario file"));
+}
+
+TEST(ScenarioValidation, ReportsAllErrorsAtOnce) {
+  std::string text = kValid;
+  text.replace(text.find("duration: 6h"), 12, "duration: long");         // line 3: type
+  text.replace(text.find("ex: 0.0001"), 10, "ex: 0.0001, colour: red");  // line 6: key
+  text.replace(text.find("cadence: 60s"), 12, "cadence: -5s");           // line 11: range
+  const std::string path = write_file("three.yaml", text);
+  const auto diags = validate_scenario_file(path);
+  ASSERT_EQ(diags.size(), 3u) << dump(diags);
+  EXPECT_EQ(diags[0].field, "duration");
+  EXPECT_EQ(diags[0].line, 3);
+  EXPECT_THAT(diags[0].message, HasSubstr("expected a duration"));
+  EXPECT_EQ(diags[1].field, "spacecraft[0].qns.colour");
+  EXPECT_EQ(diags[1].line, 6);
+  EXPECT_THAT(diags[1].message, HasSubstr("unknown key"));
+  EXPECT_EQ(diags[2].field, "observers[0].camera.cadence");
+  EXPECT_EQ(diags[2].line, 11);
+  EXPECT_THAT(diags[2].message, HasSubstr("out of range"));
+
+  try {
+    (void)load_scenario(path);
+    FAIL() << "expected ScenarioError";
+  } catch (const ScenarioError& e) {
+    EXPECT_EQ(e.diagnostics().size(), 3u);
+    const std::string what = e.what();
+    EXPECT_EQ(std::count(what.begin(), what.end(), '\n'), 2);
+    for (const auto& d : diags) EXPECT_THAT(what, HasSubstr(d.format()));
+  }
+}
+
+}  // namespace
+}  // namespace artms::config

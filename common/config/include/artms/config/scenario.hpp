@@ -25,7 +25,9 @@ struct Diagnostic {
   int column = 0;  // 1-based; 0 when unknown
   std::string field;    // dotted path, e.g. "spacecraft[2].roe_m"
   std::string message;  // what is wrong and what was expected
-  [[nodiscard]] std::string format() const;  // "file:line:col: field: message"
+  // "file:line:col: field: message" (":line:col" left out when line is 0,
+  // "field: " when field is empty).
+  [[nodiscard]] std::string format() const;
 };
 
 // Thrown by load_scenario with every problem found (not just the first).
