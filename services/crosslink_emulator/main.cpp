@@ -17,9 +17,9 @@ int run(const runtime::ServiceOptions& opt) {
   runtime::LockStepClient clock(participant, topics, opt.name, opt.step_timeout_s);
   dds::Reader<artms_msg_TruthState> truth_reader(participant, topics.truth_state, runtime::data_qos());
   runtime::EventLog events(participant, topics, opt.name);
-  clock.announce_ready({{"event writer", [&] { return events.writer().matched_readers(); },
-                         topo.readers_of_topic.at("event")},
-                        {"truth_state reader", [&] { return truth_reader.matched_writers(); }, 1}},
+  clock.announce_ready(participant,
+                       {{"event writer", events.writer().handle(), true, topo.readers_of_topic.at("event")},
+                        {"truth_state reader", truth_reader.handle(), false, 1}},
                        60.0);
   std::size_t states = 0;
   bool announced = false;

@@ -45,9 +45,10 @@ int run(const runtime::ServiceOptions& opt) {
   const dynamics::GveRk4Propagator onboard(forces, dynamics::SpacecraftProperties{});
 
   const auto& rt = topo.readers_of_topic;
-  clock.announce_ready({{"nav_telemetry writer", [&] { return nav_writer.matched_readers(); }, rt.at("nav_telemetry")},
-                        {"event writer", [&] { return events.writer().matched_readers(); }, rt.at("event")},
-                        {"gnss_fix reader", [&] { return gnss_reader.matched_writers(); }, cfg->gnss.enabled ? 1 : 0}},
+  clock.announce_ready(participant,
+                       {{"nav_telemetry writer", nav_writer.handle(), true, rt.at("nav_telemetry")},
+                        {"event writer", events.writer().handle(), true, rt.at("event")},
+                        {"gnss_fix reader", gnss_reader.handle(), false, cfg->gnss.enabled ? 1 : 0}},
                        60.0);
 
   std::optional<Fix> last_fix;

@@ -187,7 +187,7 @@ int run(const runtime::ServiceOptions& opt) {
     if (!oem.segments.empty()) io::write_oem_file((dir / "truth.oem").string(), oem);
   };
 
-  clock.announce_ready({}, 60.0);
+  clock.announce_ready(participant, {}, 60.0);
   while (auto tick = clock.wait_tick()) {
     drain();
     // Everything stamped before this tick's time is complete.

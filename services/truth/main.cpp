@@ -65,23 +65,13 @@ int run(const runtime::ServiceOptions& opt) {
   }
 
   // Start-up: every writer sees its readers, then every service is ready.
-  const auto wait_matches = [&](const char* what, const std::function<int()>& matched, int expected) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-    while (matched() < expected) {
-      if (runtime::g_stop_requested) throw std::runtime_error("stopped during start-up");
-      if (std::chrono::steady_clock::now() > deadline) {
-        throw std::runtime_error(std::string("discovery incomplete: ") + what + " has " +
-                                 std::to_string(matched()) + " of " + std::to_string(expected) +
-                                 " readers after 60 s");
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-  };
   const auto& rt = topo.readers_of_topic;
-  wait_matches("clock_tick", [&] { return tick_writer.matched_readers(); }, rt.at("clock_tick"));
-  wait_matches("truth_state", [&] { return state_writer.matched_readers(); }, rt.at("truth_state"));
-  wait_matches("gnss_fix", [&] { return gnss_writer.matched_readers(); }, rt.at("gnss_fix"));
-  wait_matches("event", [&] { return events.writer().matched_readers(); }, rt.at("event"));
+  dds::wait_for_matches(participant,
+                        {{"clock_tick writer", tick_writer.handle(), true, rt.at("clock_tick")},
+                         {"truth_state writer", state_writer.handle(), true, rt.at("truth_state")},
+                         {"gnss_fix writer", gnss_writer.handle(), true, rt.at("gnss_fix")},
+                         {"event writer", events.writer().handle(), true, rt.at("event")}},
+                        60.0, &runtime::g_stop_requested);
 
   std::map<std::string, std::int64_t> last_done;
   for (const auto& s : topo.services) {

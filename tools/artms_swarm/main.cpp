@@ -343,7 +343,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   if (!ok) {
     std::fprintf(stderr, "artms-swarm: run failed: %s\n",
                  failure.empty() ? "a process exited with a non-zero code" : failure.c_str());
-    return 1;
+    return g_signal != 0 ? 130 : 1;
   }
   return 0;
 }

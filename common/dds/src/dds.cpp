@@ -1,5 +1,6 @@
 #include "artms/dds/dds.hpp"
 
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -150,6 +151,41 @@ bool WaitSet::wait(double timeout_s) {
       dds_waitset_wait(handle(), nullptr, 0, static_cast<dds_duration_t>(timeout_s * 1e9));
   if (n < 0) throw DdsError("dds_waitset_wait", n);
   return n > 0;
+}
+
+void wait_for_matches(const Participant& p, const std::vector<MatchExpectation>& expected,
+                      double timeout_s, const volatile std::atomic<bool>* stop) {
+  WaitSet ws(p);
+  for (const auto& e : expected) {
+    const uint32_t mask = e.is_writer ? DDS_PUBLICATION_MATCHED_STATUS : DDS_SUBSCRIPTION_MATCHED_STATUS;
+    dds_return_t rc = dds_set_status_mask(e.entity, mask);
+    if (rc != DDS_RETCODE_OK) throw DdsError("dds_set_status_mask", rc);
+    rc = dds_waitset_attach(ws.handle(), e.entity, e.entity);
+    if (rc != DDS_RETCODE_OK) throw DdsError("dds_waitset_attach", rc);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  for (;;) {
+    std::string missing;
+    for (const auto& e : expected) {
+      const int m = detail::matched(e.entity, e.is_writer);  // also resets the status trigger
+      if (m < e.expected) {
+        missing += (missing.empty() ? "" : ", ") + e.name + " (" + std::to_string(m) + "/" +
+                   std::to_string(e.expected) + ")";
+      }
+    }
+    if (missing.empty()) break;
+    if (stop && stop->load()) throw std::runtime_error("stopped during discovery");
+    const double left =
+        std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
+    if (left <= 0.0) {
+      throw std::runtime_error("discovery incomplete after " + std::to_string(static_cast<int>(timeout_s)) +
+                               " s: " + missing);
+    }
+    const dds_return_t n = dds_waitset_wait(ws.handle(), nullptr, 0,
+                                            static_cast<dds_duration_t>(std::min(left, 0.5) * 1e9));
+    if (n < 0) throw DdsError("dds_waitset_wait", n);
+  }
+  for (const auto& e : expected) dds_waitset_detach(ws.handle(), e.entity);
 }
 
 std::string to_string(const char* bounded, std::size_t capacity) {

@@ -6,7 +6,6 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
-#include <thread>
 
 #include "artms/io/duration.hpp"
 
@@ -70,28 +69,14 @@ LockStepClient::LockStepClient(const dds::Participant& p, const TopicSet& topics
   waitset_.attach(tick_reader_.handle());
 }
 
-void LockStepClient::announce_ready(const std::vector<ExpectedWriter>& writers, double timeout_s) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  std::vector<ExpectedWriter> all = writers;
-  all.push_back({"clock_tick reader", [this] { return tick_reader_.matched_writers(); }, 1});
-  all.push_back({"step_done writer", [this] { return done_writer_.matched_readers(); }, 1});
-  for (;;) {
-    std::string missing;
-    for (const auto& w : all) {
-      const int m = w.matched();
-      if (m < w.expected) {
-        missing += (missing.empty() ? "" : ", ") + w.name + " (" + std::to_string(m) + "/" +
-                   std::to_string(w.expected) + ")";
-      }
-    }
-    if (missing.empty()) break;
-    if (g_stop_requested) throw std::runtime_error(name_ + ": stopped before start");
-    if (std::chrono::steady_clock::now() > deadline) {
-      throw std::runtime_error(name_ + ": discovery incomplete after " +
-                               std::to_string(static_cast<int>(timeout_s)) + " s: " + missing);
-    }
-    // Discovery has no waitable condition per match count: a short sleep.
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+void LockStepClient::announce_ready(const dds::Participant& p,
+                                    std::vector<dds::MatchExpectation> expected, double timeout_s) {
+  expected.push_back({"clock_tick reader", tick_reader_.handle(), false, 1});
+  expected.push_back({"step_done writer", done_writer_.handle(), true, 1});
+  try {
+    dds::wait_for_matches(p, expected, timeout_s, &g_stop_requested);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(name_ + ": " + e.what());
   }
   done(-1, 0);
 }

@@ -5,6 +5,7 @@
 
 #include <dds/dds.h>
 
+#include <atomic>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -131,6 +132,19 @@ class WaitSet : public Entity {
  private:
   std::vector<Entity> conditions_;
 };
+
+// Blocks until every listed writer/reader has at least `expected` matches
+// (discovery), waiting on their matched-status conditions in a WaitSet.
+// Throws std::runtime_error listing what is still unmatched at the timeout,
+// or when `stop` becomes true.
+struct MatchExpectation {
+  std::string name;
+  dds_entity_t entity;
+  bool is_writer;
+  int expected;
+};
+void wait_for_matches(const Participant& p, const std::vector<MatchExpectation>& expected,
+                      double timeout_s, const volatile std::atomic<bool>* stop = nullptr);
 
 // Copies a C string field (bounded string) safely.
 std::string to_string(const char* bounded, std::size_t capacity);

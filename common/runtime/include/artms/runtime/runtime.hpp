@@ -49,12 +49,8 @@ class LockStepClient {
   // Waits until `writers` have their expected matches (and the clock reader
   // has matched truth), then announces ready (StepDone step -1). Throws
   // std::runtime_error naming what did not match within the timeout.
-  struct ExpectedWriter {
-    std::string name;
-    std::function<int()> matched;
-    int expected;
-  };
-  void announce_ready(const std::vector<ExpectedWriter>& writers, double timeout_s);
+  void announce_ready(const dds::Participant& p, std::vector<dds::MatchExpectation> expected,
+                      double timeout_s);
   // Next tick, or nullopt if a stop was requested or no tick came within the
   // step timeout (then timed_out() says which).
   std::optional<artms_msg_ClockTick> wait_tick();
