@@ -1,0 +1,1 @@
+// photometry (to be written)

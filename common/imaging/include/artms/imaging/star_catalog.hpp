@@ -1,0 +1,1 @@
+// star_catalog (to be written)

@@ -1,0 +1,1 @@
+// visibility (to be written)

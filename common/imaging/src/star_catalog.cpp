@@ -1,0 +1,1 @@
+#include "artms/imaging/star_catalog.hpp"

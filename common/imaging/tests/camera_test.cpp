@@ -1,0 +1,1 @@
+// Tests for camera (to be written).

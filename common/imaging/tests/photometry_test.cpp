@@ -1,0 +1,1 @@
+// Tests for photometry (to be written).

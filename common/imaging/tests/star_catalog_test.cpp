@@ -1,0 +1,1 @@
+// Tests for star_catalog (to be written).

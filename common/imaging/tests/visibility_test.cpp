@@ -1,0 +1,1 @@
+// Tests for visibility (to be written).
