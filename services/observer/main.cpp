@@ -4,10 +4,12 @@
 // GVE/RK4 model. It never reads truth: it subscribes to its GNSS fixes only.
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <optional>
 
 #include "artms/astro/elements.hpp"
 #include "artms/dynamics/gve.hpp"
+#include "artms/config/uplink.hpp"
 #include "artms/runtime/runtime.hpp"
 
 namespace {
@@ -21,19 +23,15 @@ struct Fix {
 };
 
 int run(const runtime::ServiceOptions& opt) {
-  const config::Scenario sc = runtime::load_for_service(opt);
-  const std::string prefix = "observer-";
-  if (opt.name.rfind(prefix, 0) != 0) {
-    throw std::invalid_argument("observer name must be observer-<spacecraft>, got " + opt.name);
+  // The observer knows only what the ground uplinked: never the scenario
+  // (which holds the true orbits).
+  if (opt.uplink_path.empty()) throw std::invalid_argument("artms-observer needs --uplink FILE");
+  const config::ObserverUplink up = config::read_uplink(opt.uplink_path);
+  const std::string me = up.observer.spacecraft;
+  if (opt.name != "observer-" + me) {
+    throw std::invalid_argument("service name " + opt.name + " does not match the uplink's observer " + me);
   }
-  const std::string me = opt.name.substr(prefix.size());
-  const config::ObserverConfig* cfg = nullptr;
-  for (const auto& o : sc.observers) {
-    if (o.spacecraft == me) cfg = &o;
-  }
-  if (!cfg) throw std::invalid_argument("spacecraft " + me + " is not an observer in the scenario");
-  const runtime::Topology topo = runtime::topology(sc);
-
+  const config::ObserverConfig* cfg = &up.observer;
   dds::Participant participant(dds::domain_from_environment());
   runtime::TopicSet topics(participant);
   runtime::LockStepClient clock(participant, topics, opt.name, opt.step_timeout_s);
@@ -41,10 +39,11 @@ int run(const runtime::ServiceOptions& opt) {
   dds::Writer<artms_msg_NavTelemetry> nav_writer(participant, topics.nav_telemetry, runtime::data_qos());
   runtime::EventLog events(participant, topics, opt.name);
   // The onboard model (the observer's own, not the truth propagator).
-  const auto forces = dynamics::ForceModel::load(sc.force_model, ARTMS_DATA_DIR);
+  const auto forces = dynamics::ForceModel::load(up.force_model, ARTMS_DATA_DIR);
   const dynamics::GveRk4Propagator onboard(forces, dynamics::SpacecraftProperties{});
 
-  const auto& rt = topo.readers_of_topic;
+  // Readers of what the observer writes: the recorder only (runtime::topology).
+  const std::map<std::string, int> rt = {{"nav_telemetry", 1}, {"event", 1}};
   clock.announce_ready(participant,
                        {{"nav_telemetry writer", nav_writer.handle(), true, rt.at("nav_telemetry")},
                         {"event writer", events.writer().handle(), true, rt.at("event")},

@@ -24,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "artms/config/uplink.hpp"
 #include "artms/io/duration.hpp"
 #include "artms/io/oem.hpp"
 #include "artms/runtime/runtime.hpp"
@@ -224,8 +225,17 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   const std::string dur = std::to_string(sc.duration_s);
   const fs::path bin_dir = self_dir();
   const auto wall0 = Clock::now();
+  // Observers get only what the ground uplinks (no truth); the rest read the scenario.
+  fs::create_directories(dir / "uplink");
+  for (const auto& o : sc.observers) {
+    config::write_uplink(config::make_uplink(sc, o.spacecraft),
+                         (dir / "uplink" / (o.spacecraft + ".json")).string());
+  }
   for (const auto& name : services) {
-    std::vector<std::string> args = {"--scenario", fs::absolute(scenario_path).string(),
+    const bool observer = name.rfind("observer-", 0) == 0;
+    const std::string input = observer ? (dir / "uplink" / (name.substr(9) + ".json")).string()
+                                       : fs::absolute(scenario_path).string();
+    std::vector<std::string> args = {observer ? "--uplink" : "--scenario", input,
                                      "--out",      dir.string(),
                                      "--name",     name,
                                      "--duration", dur,

@@ -132,7 +132,11 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
   ServiceOptions o;
   std::string duration;
   std::uint64_t seed = 0;
-  app.add_option("--scenario", o.scenario_path, "scenario YAML file")->required();
+  auto* scen = app.add_option("--scenario", o.scenario_path, "scenario YAML file");
+  auto* up = app.add_option("--uplink", o.uplink_path,
+                            "observer uplink file (JSON written by the launcher; observers only)");
+  scen->excludes(up);
+  app.require_option(1, 0);
   app.add_option("--out", o.out_dir, "run folder")->required();
   app.add_option("--name", o.name, "service name (as in the scenario's process list)")->required();
   auto* dur = app.add_option("--duration", duration, "override the scenario duration (6h, 1d, ...)");
@@ -152,6 +156,7 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
 }
 
 config::Scenario load_for_service(const ServiceOptions& o) {
+  if (o.scenario_path.empty()) throw std::invalid_argument(o.name + " needs --scenario");
   config::Scenario s = config::load_scenario(o.scenario_path);
   if (o.duration_s) s.duration_s = *o.duration_s;
   if (o.seed) s.seed = *o.seed;

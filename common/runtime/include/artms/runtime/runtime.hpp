@@ -86,7 +86,8 @@ class EventLog {
 
 // Options every service binary takes (the launcher passes them).
 struct ServiceOptions {
-  std::string scenario_path;
+  std::string scenario_path;  // every service but the observers
+  std::string uplink_path;    // observers: what the ground uplinked (no truth)
   std::string out_dir;
   std::string name;
   std::optional<double> duration_s;

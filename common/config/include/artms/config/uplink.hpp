@@ -1,0 +1,37 @@
+// What the ground uplinks to one observer, and everything an observer process
+// may know: its own configuration, the ARTMS tuning, the force model of its
+// onboard propagator and the run's clock. No truth: no orbit of any
+// spacecraft (the a-priori of mode 1 will be added here as ground estimates
+// with their errors, never the true states).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "artms/config/scenario.hpp"
+
+namespace artms::config {
+
+struct ObserverUplink {
+  std::string scenario_name;
+  astro::TimeTT epoch;
+  double duration_s = 0.0;
+  double step_s = 60.0;
+  std::uint64_t seed = 1;
+  dynamics::ForceModelOptions force_model;
+  ObserverConfig observer;
+  ArtmsTuning tuning;
+  bool crosslink_enabled = true;
+  double isl_period_s = 60.0;
+  bool use_remote_gnss = false;
+  std::vector<std::string> swarm_ids;  // every spacecraft id (no orbits)
+};
+
+// Throws std::out_of_range if `spacecraft` is not an observer of s.
+ObserverUplink make_uplink(const Scenario& s, const std::string& spacecraft);
+// JSON file; read_uplink throws std::runtime_error naming the file and the key.
+void write_uplink(const ObserverUplink& u, const std::string& path);
+ObserverUplink read_uplink(const std::string& path);
+
+}  // namespace artms::config

@@ -1,0 +1,157 @@
+#include "artms/config/uplink.hpp"
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+namespace artms::config {
+
+using nlohmann::json;
+
+ObserverUplink make_uplink(const Scenario& s, const std::string& spacecraft) {
+  ObserverUplink u;
+  const ObserverConfig* obs = nullptr;
+  for (const auto& o : s.observers) {
+    if (o.spacecraft == spacecraft) obs = &o;
+  }
+  if (!obs) throw std::out_of_range("make_uplink: " + spacecraft + " is not an observer");
+  u.scenario_name = s.name;
+  u.epoch = s.epoch;
+  u.duration_s = s.duration_s;
+  u.step_s = s.step_s;
+  u.seed = s.seed;
+  u.force_model = s.force_model;
+  u.observer = *obs;
+  u.tuning = s.tuning;
+  u.crosslink_enabled = s.crosslink.enabled;
+  u.isl_period_s = s.crosslink.period_s;
+  u.use_remote_gnss = s.crosslink.use_remote_gnss;
+  for (const auto& sc : s.spacecraft) u.swarm_ids.push_back(sc.id);
+  return u;
+}
+
+void write_uplink(const ObserverUplink& u, const std::string& path) {
+  const auto& f = u.force_model;
+  const auto& o = u.observer;
+  json outages = json::array();
+  for (const auto& w : o.gnss.outages) outages.push_back({w.start.ns_since_j2000, w.end.ns_since_j2000});
+  const json j = {
+      {"scenario", u.scenario_name},
+      {"epoch_tt_ns", u.epoch.ns_since_j2000},
+      {"duration_s", u.duration_s},
+      {"step_s", u.step_s},
+      {"seed", u.seed},
+      {"force_model",
+       {{"gravity_degree", f.gravity_degree}, {"gravity_order", f.gravity_order}, {"drag", f.drag},
+        {"sun", f.sun}, {"moon", f.moon}, {"srp", f.srp},
+        {"conical_shadow", f.shadow == dynamics::ShadowModel::kConical},
+        {"hp_exponent", f.atmosphere.cosine_exponent}, {"hp_lag_rad", f.atmosphere.lag_angle_rad}}},
+      {"observer",
+       {{"spacecraft", o.spacecraft},
+        {"mode", o.mode},
+        {"camera",
+         {{"model", o.camera.model},
+          {"boresight_plus_velocity", o.camera.boresight == astro::Boresight::kPlusVelocity},
+          {"cadence_s", o.camera.cadence_s}}},
+        {"gnss",
+         {{"enabled", o.gnss.enabled}, {"period_s", o.gnss.period_s},
+          {"sigma_position_m", o.gnss.sigma_position_m},
+          {"sigma_velocity_mps", o.gnss.sigma_velocity_mps}, {"outages_tt_ns", outages}}},
+        {"apriori_age_days", o.apriori.age_days}}},
+      {"tuning",
+       {{"imp",
+         {{"detection_sigma", u.tuning.imp.detection_sigma},
+          {"dbscan_min_points", u.tuning.imp.dbscan_min_points},
+          {"dbscan_radius_px", u.tuning.imp.dbscan_radius_px},
+          {"dbscan_frames", u.tuning.imp.dbscan_frames}}},
+        {"bod",
+         {{"period_s", u.tuning.bod.period_s}, {"samples", u.tuning.bod.samples},
+          {"max_iterations", u.tuning.bod.max_iterations}}},
+        {"sod",
+         {{"period_s", u.tuning.sod.period_s},
+          {"bearing_sigma_arcsec", u.tuning.sod.bearing_sigma_arcsec},
+          {"eps_assign", u.tuning.sod.eps_assign}, {"eps_ambig", u.tuning.sod.eps_ambig},
+          {"max_steps_without_update", u.tuning.sod.max_steps_without_update},
+          {"max_large_residuals", u.tuning.sod.max_large_residuals}}}}},
+      {"crosslink",
+       {{"enabled", u.crosslink_enabled}, {"period_s", u.isl_period_s},
+        {"use_remote_gnss", u.use_remote_gnss}}},
+      {"swarm_ids", u.swarm_ids},
+  };
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("cannot write uplink file " + path);
+  out << j.dump(2) << "\n";
+}
+
+ObserverUplink read_uplink(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open uplink file " + path);
+  json j;
+  try {
+    j = json::parse(in);
+  } catch (const json::exception& e) {
+    throw std::runtime_error(path + ": not valid JSON: " + e.what());
+  }
+  try {
+    ObserverUplink u;
+    u.scenario_name = j.at("scenario").get<std::string>();
+    u.epoch = astro::TimeTT{j.at("epoch_tt_ns").get<std::int64_t>()};
+    u.duration_s = j.at("duration_s").get<double>();
+    u.step_s = j.at("step_s").get<double>();
+    u.seed = j.at("seed").get<std::uint64_t>();
+    const auto& f = j.at("force_model");
+    u.force_model.gravity_degree = f.at("gravity_degree").get<int>();
+    u.force_model.gravity_order = f.at("gravity_order").get<int>();
+    u.force_model.drag = f.at("drag").get<bool>();
+    u.force_model.sun = f.at("sun").get<bool>();
+    u.force_model.moon = f.at("moon").get<bool>();
+    u.force_model.srp = f.at("srp").get<bool>();
+    u.force_model.shadow = f.at("conical_shadow").get<bool>() ? dynamics::ShadowModel::kConical
+                                                             : dynamics::ShadowModel::kCylindrical;
+    u.force_model.atmosphere.cosine_exponent = f.at("hp_exponent").get<double>();
+    u.force_model.atmosphere.lag_angle_rad = f.at("hp_lag_rad").get<double>();
+    const auto& o = j.at("observer");
+    u.observer.spacecraft = o.at("spacecraft").get<std::string>();
+    u.observer.mode = o.at("mode").get<int>();
+    u.observer.camera.model = o.at("camera").at("model").get<std::string>();
+    u.observer.camera.boresight = o.at("camera").at("boresight_plus_velocity").get<bool>()
+                                      ? astro::Boresight::kPlusVelocity
+                                      : astro::Boresight::kMinusVelocity;
+    u.observer.camera.cadence_s = o.at("camera").at("cadence_s").get<double>();
+    const auto& g = o.at("gnss");
+    u.observer.gnss.enabled = g.at("enabled").get<bool>();
+    u.observer.gnss.period_s = g.at("period_s").get<double>();
+    u.observer.gnss.sigma_position_m = g.at("sigma_position_m").get<double>();
+    u.observer.gnss.sigma_velocity_mps = g.at("sigma_velocity_mps").get<double>();
+    for (const auto& w : g.at("outages_tt_ns")) {
+      u.observer.gnss.outages.push_back(
+          {astro::TimeTT{w.at(0).get<std::int64_t>()}, astro::TimeTT{w.at(1).get<std::int64_t>()}});
+    }
+    u.observer.apriori.age_days = o.at("apriori_age_days").get<double>();
+    const auto& t = j.at("tuning");
+    u.tuning.imp.detection_sigma = t.at("imp").at("detection_sigma").get<double>();
+    u.tuning.imp.dbscan_min_points = t.at("imp").at("dbscan_min_points").get<int>();
+    u.tuning.imp.dbscan_radius_px = t.at("imp").at("dbscan_radius_px").get<double>();
+    u.tuning.imp.dbscan_frames = t.at("imp").at("dbscan_frames").get<int>();
+    u.tuning.bod.period_s = t.at("bod").at("period_s").get<double>();
+    u.tuning.bod.samples = t.at("bod").at("samples").get<int>();
+    u.tuning.bod.max_iterations = t.at("bod").at("max_iterations").get<int>();
+    const auto& sod = t.at("sod");
+    u.tuning.sod.period_s = sod.at("period_s").get<double>();
+    u.tuning.sod.bearing_sigma_arcsec = sod.at("bearing_sigma_arcsec").get<double>();
+    u.tuning.sod.eps_assign = sod.at("eps_assign").get<double>();
+    u.tuning.sod.eps_ambig = sod.at("eps_ambig").get<double>();
+    u.tuning.sod.max_steps_without_update = sod.at("max_steps_without_update").get<int>();
+    u.tuning.sod.max_large_residuals = sod.at("max_large_residuals").get<int>();
+    const auto& c = j.at("crosslink");
+    u.crosslink_enabled = c.at("enabled").get<bool>();
+    u.isl_period_s = c.at("period_s").get<double>();
+    u.use_remote_gnss = c.at("use_remote_gnss").get<bool>();
+    u.swarm_ids = j.at("swarm_ids").get<std::vector<std::string>>();
+    return u;
+  } catch (const json::exception& e) {
+    throw std::runtime_error(path + ": malformed uplink: " + e.what());
+  }
+}
+
+}  // namespace artms::config
