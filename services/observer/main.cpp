@@ -36,6 +36,8 @@ int run(const runtime::ServiceOptions& opt) {
   runtime::TopicSet topics(participant);
   runtime::LockStepClient clock(participant, topics, opt.name, opt.step_timeout_s);
   dds::Reader<artms_msg_GnssFix> gnss_reader(participant, topics.gnss_fix, runtime::data_qos());
+  // Only this observer's frames: the renderer writes them in partition frames-<id>.
+  dds::Reader<artms_msg_CameraFrame> frame_reader(participant, topics.camera_frame, runtime::frame_qos(me));
   dds::Writer<artms_msg_NavTelemetry> nav_writer(participant, topics.nav_telemetry, runtime::data_qos());
   runtime::EventLog events(participant, topics, opt.name);
   // The onboard model (the observer's own, not the truth propagator).
@@ -47,10 +49,13 @@ int run(const runtime::ServiceOptions& opt) {
   clock.announce_ready(participant,
                        {{"nav_telemetry writer", nav_writer.handle(), true, rt.at("nav_telemetry")},
                         {"event writer", events.writer().handle(), true, rt.at("event")},
-                        {"gnss_fix reader", gnss_reader.handle(), false, cfg->gnss.enabled ? 1 : 0}},
+                        {"gnss_fix reader", gnss_reader.handle(), false, cfg->gnss.enabled ? 1 : 0},
+                        {"camera_frame reader", frame_reader.handle(), false, 1}},
                        60.0);
 
   std::optional<Fix> last_fix;
+  std::uint32_t frames_received = 0;
+  std::size_t frames_rejected = 0;
   std::size_t rejected = 0;
   bool announced = false;
   while (auto tick = clock.wait_tick()) {
@@ -75,8 +80,21 @@ int run(const runtime::ServiceOptions& opt) {
       }
       if (!last_fix || last_fix->t <= fix.t) last_fix = fix;
     });
+    // Camera frames (IMP arrives with the IMP issue): checked and counted.
+    frame_reader.take_each([&](const artms_msg_CameraFrame& f) {
+      const bool ok = f.width > 0 && f.height > 0 && f.bit_depth > 0 && f.bit_depth <= 16 &&
+                      f.pixels._length == static_cast<std::uint32_t>(f.width) * f.height;
+      if (!ok) {
+        ++frames_rejected;
+        events.warning(t.ns_since_j2000, "rejected a corrupt camera frame (" + std::to_string(frames_rejected) +
+                                             " so far): size does not match its header");
+        return;
+      }
+      ++frames_received;
+    });
     if (!tick->final_step) {
       artms_msg_NavTelemetry nav{};
+      nav.frames_received = frames_received;
       dds::copy_string(nav.observer, sizeof nav.observer, me);
       nav.t_tt_ns = t.ns_since_j2000;
       nav.mode = 0;

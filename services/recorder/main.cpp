@@ -82,13 +82,14 @@ int run(const runtime::ServiceOptions& opt) {
   dds::Reader<artms_msg_Event> event_reader(participant, topics.event, q);
   dds::Reader<artms_msg_LinkState> link_reader(participant, topics.link_state, q);
   dds::Reader<artms_msg_IslBroadcast> isl_reader(participant, topics.isl_broadcast, q);
+  dds::Reader<artms_msg_FrameTruth> frame_truth_reader(participant, topics.frame_truth, q);
 
   std::map<std::string, std::unique_ptr<SortedSink>> nav;
   for (const auto& o : sc.observers) {
     nav[o.spacecraft] = std::make_unique<SortedSink>(
         dir / "nav" / (o.spacecraft + ".csv"),
         "t_utc,t_tt_ns,mode,health,source,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,"
-        "sigma_x_m,sigma_y_m,sigma_z_m,sigma_vx_mps,sigma_vy_mps,sigma_vz_mps,targets");
+        "sigma_x_m,sigma_y_m,sigma_z_m,sigma_vx_mps,sigma_vy_mps,sigma_vz_mps,targets,frames_received");
   }
   SortedSink targets(dir / "nav" / "targets.csv",
                      "t_utc,t_tt_ns,observer,target,da,dlambda,dex,dey,dix,diy,"
@@ -98,6 +99,9 @@ int run(const runtime::ServiceOptions& opt) {
   SortedSink isl(dir / "isl.csv", "t_utc,t_tt_ns,sender,sequence,source,measurements");
   SortedSink links(dir / "links.csv", "t_utc,t_tt_ns,from,to,up,reason");
   SortedSink events(dir / "events.log", "");
+  SortedSink frames(dir / "frames.csv",
+                    "t_utc,t_tt_ns,observer,frame,time_tag_tt_ns,dropped,exclusion,stars,target,x_px,y_px,"
+                    "vmag,range_m,visible,reason");
   std::map<std::string, io::OemSegment> truth;
 
   std::size_t rejected = 0;
@@ -132,10 +136,11 @@ int run(const runtime::ServiceOptions& opt) {
       const auto sd = [&](int i) { return std::sqrt(std::max(0.0, m.covariance_rv[i * 6 + i])); };
       it->second->add(
           m.t_tt_ns, id,
-          fmt("%s,%lld,%d,%d,%d,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%u",
+          fmt("%s,%lld,%d,%d,%d,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%u,%u",
               utc(m.t_tt_ns).c_str(), static_cast<long long>(m.t_tt_ns), m.mode, m.health, m.source,
               m.r_eci_m[0], m.r_eci_m[1], m.r_eci_m[2], m.v_eci_mps[0], m.v_eci_mps[1],
-              m.v_eci_mps[2], sd(0), sd(1), sd(2), sd(3), sd(4), sd(5), m.targets._length));
+              m.v_eci_mps[2], sd(0), sd(1), sd(2), sd(3), sd(4), sd(5), m.targets._length,
+              m.frames_received));
       for (std::uint32_t k = 0; k < m.targets._length; ++k) {
         const auto& e = m.targets._buffer[k];
         std::string line = fmt("%s,%lld,%s,%s", utc(m.t_tt_ns).c_str(),
@@ -162,6 +167,21 @@ int run(const runtime::ServiceOptions& opt) {
                     from.c_str(), dds::to_string(l.to_id, sizeof l.to_id).c_str(), l.up ? 1 : 0,
                     dds::to_string(l.reason, sizeof l.reason).c_str()));
     });
+    frame_truth_reader.take_each([&](const artms_msg_FrameTruth& f) {
+      const std::string obs = dds::to_string(f.observer, sizeof f.observer);
+      const std::string head =
+          fmt("%s,%lld,%s,%u,%lld,%d,%s,%u", utc(f.t_tt_ns).c_str(), static_cast<long long>(f.t_tt_ns),
+              obs.c_str(), f.frame_seq, static_cast<long long>(f.time_tag_tt_ns), f.dropped ? 1 : 0,
+              dds::to_string(f.exclusion, sizeof f.exclusion).c_str(), f.stars_used);
+      if (f.targets._length == 0) frames.add(f.t_tt_ns, obs, head + ",,,,,,,");
+      for (std::uint32_t k = 0; k < f.targets._length; ++k) {
+        const auto& tp = f.targets._buffer[k];
+        frames.add(f.t_tt_ns, obs,
+                   head + fmt(",%s,%.3f,%.3f,%.3f,%.1f,%d,%s", dds::to_string(tp.target, sizeof tp.target).c_str(),
+                              tp.x_px, tp.y_px, tp.vmag, tp.range_m, tp.visible ? 1 : 0,
+                              dds::to_string(tp.reason, sizeof tp.reason).c_str()));
+      }
+    });
     isl_reader.take_each([&](const artms_msg_IslBroadcast& b) {
       const std::string s = dds::to_string(b.sender, sizeof b.sender);
       isl.add(b.t_tt_ns, s,
@@ -176,6 +196,7 @@ int run(const runtime::ServiceOptions& opt) {
     isl.flush(limit);
     links.flush(limit);
     events.flush(limit);
+    frames.flush(limit);
   };
   const auto write_truth = [&]() {
     io::OemFile oem;

@@ -146,6 +146,38 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
     obs["targets"] = nlohmann::json::object();
     j["observers"][o.spacecraft] = obs;
   }
+  // Camera: frames scheduled / dropped (frame truth), received (observer).
+  {
+    std::map<std::string, std::map<std::string, std::pair<bool, bool>>> seen;  // obs -> frame -> (dropped, excluded)
+    std::ifstream in(dir / "frames.csv");
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      std::vector<std::string> c;
+      std::stringstream ss(line);
+      std::string x;
+      while (std::getline(ss, x, ',')) c.push_back(x);
+      if (c.size() < 7) continue;
+      seen[c[2]][c[3]] = {c[5] == "1", c[6] != "none"};
+    }
+    j["camera"] = nlohmann::json::object();
+    for (const auto& o : sc.observers) {
+      long scheduled = 0, dropped = 0, excluded = 0;
+      for (const auto& [frame, fl] : seen[o.spacecraft]) {
+        ++scheduled;
+        dropped += fl.first ? 1 : 0;
+        excluded += fl.second ? 1 : 0;
+      }
+      const auto row = last_row(dir / "nav" / (o.spacecraft + ".csv"));
+      const long received = row.size() >= 19 ? std::stol(row[18]) : 0;
+      j["camera"][o.spacecraft] = {{"cadence_s", o.camera.cadence_s},
+                                   {"frames_scheduled", scheduled},
+                                   {"frames_dropped", dropped},
+                                   {"frames_excluded", excluded},
+                                   {"frames_received", received},
+                                   {"dropout_rate", scheduled > 0 ? static_cast<double>(dropped) / static_cast<double>(scheduled) : 0.0}};
+    }
+  }
   // Crosslink accounting (the emulator arrives with the crosslink issue).
   long sent = -1;
   {

@@ -959,7 +959,7 @@ class Parser {
   }
 
   void parse_camera(const Val& v, CameraConfig& c) {
-    Map m(ctx_, v, {"model", "boresight", "cadence", "pointing_error_deg", "jitter_deg"});
+    Map m(ctx_, v, {"model", "boresight", "cadence", "pointing_error_deg", "jitter_deg", "profile"});
     if (!m.ok()) return;
     if (const Val* mv = m.find("model")) {
       if (auto model =
@@ -981,6 +981,16 @@ class Parser {
     number_field(ctx_, m, "pointing_error_deg", c.pointing_error_deg, Range{0.0, 90.0, false, true},
                  "deg");
     number_field(ctx_, m, "jitter_deg", c.jitter_deg, Range{0.0, 90.0, false, true}, "deg");
+    if (const Val* pv = m.find("profile")) {
+      const auto t = read_string(ctx_, *pv, "nominal or flight-like");
+      if (t && *t == "flight-like") {
+        c.flight_like = true;
+      } else if (t && *t == "nominal") {
+        c.flight_like = false;
+      } else if (t) {
+        ctx_.error(*pv, "expected nominal or flight-like, got " + describe(pv->node));
+      }
+    }
   }
 
   void parse_gnss(const Val& v, GnssConfig& g, ObsInfo& info) {

@@ -40,6 +40,9 @@ TopicSet::TopicSet(const dds::Participant& p)
 dds::QosProfile clock_qos() { return {true, true, 1, 0, {}}; }
 dds::QosProfile step_done_qos() { return {true, true, 1, 0, {}}; }
 dds::QosProfile data_qos() { return {true, false, 0, 0, {}}; }
+dds::QosProfile frame_qos(const std::string& observer) {
+  return {true, false, 4, 0, {"frames-" + observer}};
+}
 
 Topology topology(const config::Scenario& s) {
   Topology t;
@@ -53,6 +56,7 @@ Topology topology(const config::Scenario& s) {
       {"truth_state", 3},               // camera renderer, crosslink emulator, recorder
       {"gnss_fix", gnss_readers},       // observers with GNSS, recorder
       {"nav_telemetry", 1},             // recorder
+      {"frame_truth", 1},               // recorder (evaluation only)
       {"link_state", 1},                // recorder
       {"event", 1},                     // recorder
   };

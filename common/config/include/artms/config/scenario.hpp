@@ -77,6 +77,9 @@ struct CameraConfig {
   double cadence_s = 60.0;
   double pointing_error_deg = 0.0;  // 1-sigma, fixed per run
   double jitter_deg = 0.0;          // 1-sigma, per frame
+  // Target photometry: nominal, or "flight-like" (targets beyond ~100 km
+  // often lost in noise, as in the paper; docs/imaging_targets.md).
+  bool flight_like = false;
 };
 
 // Ground a-priori knowledge uplinked to an observer (navigation mode 1):

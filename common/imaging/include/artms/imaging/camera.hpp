@@ -97,7 +97,7 @@ struct CameraModel {
   // baffle: 27 deg); within these the frame is washed out or unusable.
   double sun_exclusion_rad = 45.0 * astro::kDegToRad;
   double moon_exclusion_rad = 15.0 * astro::kDegToRad;
-  double earth_limb_exclusion_rad = 25.0 * astro::kDegToRad;
+  double earth_limb_exclusion_rad = 15.0 * astro::kDegToRad;  // see config/cameras/nst.yaml
 
   // Loads a camera file (schema: config/cameras/nst.yaml). Geometry keys are
   // required; the rest default to the values above. Throws std::runtime_error

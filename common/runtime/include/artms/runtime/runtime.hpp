@@ -28,6 +28,9 @@ struct TopicSet {
 dds::QosProfile clock_qos();      // reliable, transient-local, keep last 1
 dds::QosProfile step_done_qos();  // reliable, transient-local, keep last 1 per service
 dds::QosProfile data_qos();       // reliable, volatile, keep all
+// Camera frames: reliable, keep last 4, in the partition "frames-<observer>"
+// so that each observer receives only its own frames.
+dds::QosProfile frame_qos(const std::string& observer);
 
 // Number of readers each writer of a service must see before the run starts.
 // Derived from the scenario (services(), observers, GNSS flags).
