@@ -4,7 +4,9 @@
 
 #include <random>
 
+#include "artms/astro/elements.hpp"
 #include "artms/imaging/image.hpp"
+#include "artms/imaging/renderer.hpp"
 
 namespace {
 
@@ -67,6 +69,35 @@ void BM_StarsInFrame(benchmark::State& state) {
   state.counters["stars"] = static_cast<double>(n);
 }
 BENCHMARK(BM_StarsInFrame)->Unit(benchmark::kMicrosecond);
+
+// The whole renderer as the service runs it: catalog stars, the faint-star
+// sky, two targets, exclusions and the full noise model (PSE, SV4 camera).
+void BM_FullRendererFrame(benchmark::State& state) {
+  imaging::RenderOptions options;
+  options.profile = imaging::TargetProfile::flight_like();
+  const imaging::FrameRenderer renderer(
+      nst(), imaging::StarCatalog::load_bsc5(std::string(ARTMS_DATA_DIR) + "/stars/bsc5.dat", 99.0), options);
+  using astro::kDegToRad;
+  const astro::QnsElements sv4{6943e3, 0.0001, 0.0016, 99.4 * kDegToRad, -38.0 * kDegToRad, -153.0 * kDegToRad};
+  imaging::RenderRequest req;
+  req.observer = "SV4";
+  req.t = astro::tt_from_utc_string("2024-05-08T00:10:00Z");
+  req.observer_eci = astro::cartesian_from_qns(sv4);
+  req.q_cam_from_eci = Eigen::Quaterniond(astro::R_v_from_eci(req.observer_eci, astro::Boresight::kMinusVelocity));
+  req.targets = {{"SV2", req.observer_eci.r_m - 52e3 * req.observer_eci.v_mps.normalized()},
+                 {"SV3", req.observer_eci.r_m - 130e3 * req.observer_eci.v_mps.normalized()}};
+  std::size_t faint = 0, stars = 0;
+  for (auto _ : state) {
+    ++req.frame_index;
+    const auto f = renderer.render(req);
+    faint = f.faint_stars;
+    stars = f.stars.size();
+    benchmark::DoNotOptimize(f.pixels.data());
+  }
+  state.counters["catalog_stars"] = static_cast<double>(stars);
+  state.counters["faint_stars"] = static_cast<double>(faint);
+}
+BENCHMARK(BM_FullRendererFrame)->Unit(benchmark::kMillisecond)->Repetitions(5)->ReportAggregatesOnly(true);
 
 }  // namespace
 
