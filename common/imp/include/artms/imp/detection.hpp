@@ -1,0 +1,1 @@
+// detection (to be written)

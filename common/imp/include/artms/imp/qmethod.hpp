@@ -1,0 +1,1 @@
+// qmethod (to be written)

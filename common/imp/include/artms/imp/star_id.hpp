@@ -1,0 +1,1 @@
+// star_id (to be written)

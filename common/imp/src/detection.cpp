@@ -1,0 +1,1 @@
+#include "artms/imp/detection.hpp"

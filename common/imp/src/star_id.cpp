@@ -1,0 +1,1 @@
+#include "artms/imp/star_id.hpp"

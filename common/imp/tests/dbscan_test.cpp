@@ -1,0 +1,1 @@
+// Tests for dbscan (to be written).

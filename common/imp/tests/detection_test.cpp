@@ -1,0 +1,1 @@
+// Tests for detection (to be written).

@@ -1,0 +1,1 @@
+// Tests for qmethod (to be written).

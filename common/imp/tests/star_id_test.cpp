@@ -1,0 +1,1 @@
+// Tests for star_id (to be written).
