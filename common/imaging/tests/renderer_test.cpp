@@ -1,1 +1,196 @@
-// renderer tests
+// Renderer checks: detection SNR of stars and swarm targets with the shipped
+// NST camera and its full noise model (renderer issue, acceptance 2; the
+// printed table is the one in docs/imaging.md, section "Detection SNR").
+#include "artms/imaging/renderer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "artms/astro/constants.hpp"
+#include "artms/dynamics/ephemeris.hpp"
+
+namespace artms::imaging {
+namespace {
+
+using astro::kDegToRad;
+using dynamics::kAstronomicalUnit_m;
+
+// Measurement (documented in docs/imaging.md):
+// - aperture: 5 x 5 px centred on the pixel holding the source (sources sit
+//   at pixel centres; a 1.2 px PSF puts 92.8 % of the light in it);
+// - background estimate: the mean of the square annulus 8..12 px
+//   (Chebyshev distance) around the source, times 25, in each frame;
+// - SNR = mean(aperture sum - background) / std(aperture sum - background)
+//   over kFrames noisy frames (seeds 1..kFrames) x kCopies copies of the
+//   source at different places, away from hot pixels and other sources.
+constexpr int kApertureHalf = 2;
+constexpr int kAnnulusIn = 8;
+constexpr int kAnnulusOut = 12;
+constexpr int kGrid_px = 40;  // source spacing (> 2 kAnnulusOut + PSF)
+constexpr int kCopies = 8;
+constexpr int kFrames = 128;
+
+struct SnrRow {
+  std::string label;
+  double vmag = 0.0;
+  std::vector<std::pair<int, int>> where;  // pixel positions of the copies
+  double signal_e = 0.0, noise_e = 0.0, snr = 0.0, snr_predicted = 0.0;
+};
+
+// CCD equation for the same estimator: shot noise of the source and of the
+// sky + dark in the aperture, read and quantisation noise, and the noise the
+// annulus mean brings in (n_ap^2 / n_ann times the per-pixel variance).
+double predicted_snr(const CameraModel& c, double vmag) {
+  const double ee1 = std::erf((kApertureHalf + 0.5) / (std::sqrt(2.0) * c.psf_sigma_px));
+  const double s = c.electrons_from_vmag(vmag) * ee1 * ee1;
+  const double n_ap = (2 * kApertureHalf + 1) * (2 * kApertureHalf + 1);
+  const double n_ann =
+      (2 * kAnnulusOut + 1) * (2 * kAnnulusOut + 1) - (2 * kAnnulusIn - 1) * (2 * kAnnulusIn - 1);
+  const double var_px = (c.background_e_per_px_per_s + c.dark_current_e_per_s) * c.exposure_s +
+                        c.read_noise_e * c.read_noise_e + c.gain_e_per_dn * c.gain_e_per_dn / 12.0;
+  return s / std::sqrt(s + n_ap * var_px + n_ap * n_ap / n_ann * var_px);
+}
+
+TEST(RendererSnr, TableForDocs) {
+  const CameraModel cam = CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst.yaml");
+  const ImageFormer former(cam);
+  const int w = cam.width_px, h = cam.height_px;
+
+  std::vector<SnrRow> rows;
+  const double star_v[] = {3.0, 4.0, 5.0, 6.0, 6.5, 7.0, 7.5, 8.0, 9.0};
+  for (const double v : star_v) rows.push_back({"star", v, {}, 0, 0, 0, 0});
+  // Default CubeSat (photometry.hpp) at 1 AU from the Sun, fully lit;
+  // flight-like = +1.5 mag (without the per-frame 0.3 mag draw).
+  const TargetOptics optics;
+  const double ranges_km[] = {50.0, 100.0, 150.0};
+  const double phases_deg[] = {30.0, 90.0};
+  for (const bool flight : {false, true}) {
+    for (const double ph : phases_deg) {
+      for (const double r : ranges_km) {
+        const double v = diffuse_sphere_vmag(optics.radius_m, optics.geometric_albedo, r * 1e3,
+                                             ph * kDegToRad, kAstronomicalUnit_m) +
+                         (flight ? TargetProfile::flight_like().loss_mag : 0.0);
+        char label[64];
+        std::snprintf(label, sizeof label, "target %s %3.0f km %2.0f deg",
+                      flight ? "flight-like" : "nominal    ", r, ph);
+        rows.push_back({label, v, {}, 0, 0, 0, 0});
+      }
+    }
+  }
+
+  // Grid cells whose annulus is free of hot pixels, handed out row by row.
+  std::vector<std::pair<int, int>> cells;
+  for (int y = kGrid_px; y + kGrid_px < h; y += kGrid_px) {
+    for (int x = kGrid_px; x + kGrid_px < w; x += kGrid_px) {
+      bool clean = true;
+      for (const HotPixel& hp : former.hot_pixels()) {
+        if (std::abs(hp.x - x) <= kAnnulusOut + 1 && std::abs(hp.y - y) <= kAnnulusOut + 1)
+          clean = false;
+      }
+      if (clean) cells.emplace_back(x, y);
+    }
+  }
+  ASSERT_GE(cells.size(), rows.size() * kCopies);
+  std::vector<PointSource> sources;
+  std::size_t next = 0;
+  for (int k = 0; k < kCopies; ++k) {
+    for (SnrRow& row : rows) {
+      const auto [x, y] = cells[next++ * (cells.size() / (rows.size() * kCopies))];
+      row.where.emplace_back(x, y);
+      sources.push_back(
+          {static_cast<double>(x), static_cast<double>(y), cam.electrons_from_vmag(row.vmag)});
+    }
+  }
+
+  // Samples of (aperture sum - background estimate), in DN.
+  std::vector<std::vector<double>> samples(rows.size());
+  const double n_ap = (2 * kApertureHalf + 1) * (2 * kApertureHalf + 1);
+  for (int f = 0; f < kFrames; ++f) {
+    const std::vector<std::uint16_t> img =
+        former.render(sources, static_cast<std::uint64_t>(f + 1));
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      for (const auto& [x0, y0] : rows[i].where) {
+        double ap = 0.0, ann = 0.0;
+        int n_ann = 0;
+        for (int dy = -kAnnulusOut; dy <= kAnnulusOut; ++dy) {
+          for (int dx = -kAnnulusOut; dx <= kAnnulusOut; ++dx) {
+            const double v = img[static_cast<std::size_t>(y0 + dy) * static_cast<std::size_t>(w) +
+                                 static_cast<std::size_t>(x0 + dx)];
+            const int d = std::max(std::abs(dx), std::abs(dy));
+            if (d <= kApertureHalf) ap += v;
+            if (d >= kAnnulusIn) {
+              ann += v;
+              ++n_ann;
+            }
+          }
+        }
+        samples[i].push_back(ap - n_ap * ann / n_ann);
+      }
+    }
+  }
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    double m = 0.0, v = 0.0;
+    for (const double s : samples[i]) m += s;
+    m /= static_cast<double>(samples[i].size());
+    for (const double s : samples[i]) v += (s - m) * (s - m);
+    v /= static_cast<double>(samples[i].size() - 1);
+    rows[i].signal_e = m * cam.gain_e_per_dn;
+    rows[i].noise_e = std::sqrt(v) * cam.gain_e_per_dn;
+    rows[i].snr = m / std::sqrt(v);
+    rows[i].snr_predicted = predicted_snr(cam, rows[i].vmag);
+  }
+
+  std::printf(
+      "Detection SNR, %s camera, full noise model, %dx%d px aperture, %d frames x %d copies\n",
+      cam.name.c_str(), 2 * kApertureHalf + 1, 2 * kApertureHalf + 1, kFrames, kCopies);
+  std::printf("| source | V | signal (e-) | noise (e-) | SNR measured | SNR predicted |\n");
+  for (const SnrRow& r : rows) {
+    std::printf("| %s | %.2f | %.0f | %.1f | %.1f | %.1f |\n", r.label.c_str(), r.vmag, r.signal_e,
+                r.noise_e, r.snr, r.snr_predicted);
+  }
+
+  // The measurement agrees with the CCD equation (statistical error of an
+  // SNR from 1024 samples: ~2.2 %).
+  for (const SnrRow& r : rows)
+    EXPECT_NEAR(r.snr / r.snr_predicted, 1.0, 0.1) << r.label << " V " << r.vmag;
+  // Stars: SNR falls with magnitude; the camera defaults put 5 sigma near
+  // V = 7.5 (camera.hpp, exposure_s): within a factor 2 of it.
+  for (std::size_t i = 1; i < std::size(star_v); ++i)
+    EXPECT_LT(rows[i].snr, rows[i - 1].snr) << "V " << star_v[i];
+  const SnrRow& v75 = rows[6];
+  ASSERT_DOUBLE_EQ(v75.vmag, 7.5);
+  EXPECT_GT(v75.snr, 2.5);
+  EXPECT_LT(v75.snr, 10.0);
+  // Bright stars approach the shot-noise limit sqrt(signal) (V = 3: ~90 %,
+  // the sky, dark and read noise of 25 pixels take the rest); faint ones are
+  // sky- and read-noise limited (noise independent of the source).
+  EXPECT_LT(rows[0].snr, std::sqrt(rows[0].signal_e));
+  EXPECT_GT(rows[0].snr, 0.8 * std::sqrt(rows[0].signal_e));
+  EXPECT_NEAR(rows[8].noise_e / rows[7].noise_e, 1.0, 0.1);
+  // Targets (after the 9 stars): per profile and phase, 50, 100, 150 km.
+  const std::size_t t0 = std::size(star_v);
+  auto target = [&](bool flight, int phase, int range) -> const SnrRow& {
+    return rows[t0 + static_cast<std::size_t>((flight ? 6 : 0) + phase * 3 + range)];
+  };
+  for (const bool flight : {false, true}) {
+    for (int p = 0; p < 2; ++p) {
+      EXPECT_LT(target(flight, p, 1).snr, target(flight, p, 0).snr);
+      EXPECT_LT(target(flight, p, 2).snr, target(flight, p, 1).snr);
+      for (int r = 0; r < 3; ++r) EXPECT_LT(target(true, p, r).snr, target(false, p, r).snr);
+    }
+  }
+  // The paper's picture: the nominal 50 km target is well detected at any of
+  // these phases, the flight-like 150 km one at 90 deg phase is not.
+  // (Measured ~110 and ~55 for the former, ~2.6 for the latter; asserted
+  // with margin.)
+  EXPECT_GT(target(false, 0, 0).snr, 2 * 5.0);
+  EXPECT_GT(target(false, 1, 0).snr, 2 * 5.0);
+  EXPECT_LT(target(true, 1, 2).snr, 0.8 * 5.0);
+}
+
+}  // namespace
+}  // namespace artms::imaging
