@@ -101,6 +101,7 @@ struct Scores {
 // centroid errors (per axis) of those stars that are not saturated and have
 // no other source within 6 px; centroids farther than 2 px from every source
 // (false detections); centroids within 1.5 px of an isolated hot pixel.
+// With IMP_DEBUG set in the environment, missed stars and false detections are listed.
 // With stray light, only stars whose expected peak pixel is at least 7
 // sigma of the local noise (read, dark, background and stray-light shot
 // noise) count for the recall: the brightest corner of a strong ramp buries
