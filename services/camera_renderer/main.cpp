@@ -137,19 +137,9 @@ int run(const runtime::ServiceOptions& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int code = 0;
-  const auto opt = runtime::parse_service_options(
-      argc, argv, "artms-camera-renderer",
-      "Camera renderer: NST-like 1280x1024 12-bit frames for every observer at its cadence, from\n"
+  return runtime::run_service(argc, argv, "artms-camera-renderer",
+                              "Camera renderer: NST-like 1280x1024 12-bit frames for every observer at its cadence, from\n"
       "truth (stars, faint stars, targets, noise, hot pixels, eclipse, exclusions, drop-outs,\n"
       "time-tag faults); publishes camera frames and frame truth.",
-      &code);
-  if (!opt) return code;
-  runtime::install_signal_handlers();
-  try {
-    return run(*opt);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "[%s] error: %s\n", opt->name.c_str(), e.what());
-    return 1;
-  }
+                              run);
 }

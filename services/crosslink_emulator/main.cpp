@@ -39,14 +39,7 @@ int run(const runtime::ServiceOptions& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int code = 0;
-  const auto opt = runtime::parse_service_options(argc, argv, "artms-crosslink-emulator", "Crosslink emulator (placeholder until the crosslink issue): joins the lock-step clock and\nconsumes truth states; the inter-satellite link is not emulated yet.", &code);
-  if (!opt) return code;
-  runtime::install_signal_handlers();
-  try {
-    return run(*opt);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "[%s] error: %s\n", opt->name.c_str(), e.what());
-    return 1;
-  }
+  return runtime::run_service(argc, argv, "artms-crosslink-emulator",
+                              "Crosslink emulator (placeholder until the crosslink issue): joins the lock-step clock and\nconsumes truth states; the inter-satellite link is not emulated yet.",
+                              run);
 }

@@ -140,18 +140,8 @@ int run(const runtime::ServiceOptions& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int code = 0;
-  const auto opt = runtime::parse_service_options(
-      argc, argv, "artms-observer",
-      "One ARTMS observer process (IMP -> BOD -> SOD on its own frames, GNSS and ISL).\n"
+  return runtime::run_service(argc, argv, "artms-observer",
+                              "One ARTMS observer process (IMP -> BOD -> SOD on its own frames, GNSS and ISL).\n"
       "Until IMP and SOD land it runs the GNSS-only baseline navigation mode.",
-      &code);
-  if (!opt) return code;
-  runtime::install_signal_handlers();
-  try {
-    return run(*opt);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "[%s] error: %s\n", opt->name.c_str(), e.what());
-    return 1;
-  }
+                              run);
 }

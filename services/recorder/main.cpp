@@ -232,18 +232,8 @@ int run(const runtime::ServiceOptions& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int code = 0;
-  const auto opt = runtime::parse_service_options(
-      argc, argv, "artms-recorder",
-      "Records every topic of a run into the run folder (truth.oem, nav/, gnss.csv, isl.csv,\n"
+  return runtime::run_service(argc, argv, "artms-recorder",
+                              "Records every topic of a run into the run folder (truth.oem, nav/, gnss.csv, isl.csv,\n"
       "links.csv, events.log), deterministically ordered.",
-      &code);
-  if (!opt) return code;
-  runtime::install_signal_handlers();
-  try {
-    return run(*opt);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "[%s] error: %s\n", opt->name.c_str(), e.what());
-    return 1;
-  }
+                              run);
 }

@@ -184,18 +184,8 @@ int run(const runtime::ServiceOptions& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int code = 0;
-  const auto opt = runtime::parse_service_options(
-      argc, argv, "artms-truth",
-      "Truth service and clock master: propagates every spacecraft (SUNDIALS CVODE), publishes\n"
+  return runtime::run_service(argc, argv, "artms-truth",
+                              "Truth service and clock master: propagates every spacecraft (SUNDIALS CVODE), publishes\n"
       "truth states and GNSS fixes, and drives the lock-step clock.",
-      &code);
-  if (!opt) return code;
-  runtime::install_signal_handlers();
-  try {
-    return run(*opt);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "[%s] error: %s\n", opt->name.c_str(), e.what());
-    return 1;
-  }
+                              run);
 }

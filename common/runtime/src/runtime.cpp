@@ -159,6 +159,20 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
   return o;
 }
 
+int run_service(int argc, char** argv, const std::string& app, const std::string& description,
+                const std::function<int(const ServiceOptions&)>& body) {
+  int code = 0;
+  const auto opt = parse_service_options(argc, argv, app, description, &code);
+  if (!opt) return code;
+  install_signal_handlers();
+  try {
+    return body(*opt);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "[%s] error: %s\n", opt->name.c_str(), e.what());
+    return 1;
+  }
+}
+
 config::Scenario load_for_service(const ServiceOptions& o) {
   if (o.scenario_path.empty()) throw std::invalid_argument(o.name + " needs --scenario");
   config::Scenario s = config::load_scenario(o.scenario_path);

@@ -103,6 +103,11 @@ struct ServiceOptions {
 std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const std::string& app,
                                                     const std::string& description,
                                                     int* exit_code);
+// The whole main() of a service: parses the common options, installs the
+// signal handlers, runs `body` and turns an exception into a named error and
+// exit code 1.
+int run_service(int argc, char** argv, const std::string& app, const std::string& description,
+                const std::function<int(const ServiceOptions&)>& body);
 // Loads the scenario with the overrides applied (duration, seed).
 config::Scenario load_for_service(const ServiceOptions& o);
 
