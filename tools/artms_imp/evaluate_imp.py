@@ -1,0 +1,88 @@
+#!/usr/bin/env python3
+"""Compares artms-imp outputs with artms-render truth sidecars.
+
+usage: evaluate_imp.py FRAMES_DIR IMP_OUT_DIR [--json FILE]
+Prints attitude success rate on frames with >= 4 catalog stars of V <= 6.5,
+the rate of accepted attitudes wrong by more than 1 arcmin, the attitude error
+(cross-boresight and roll, 1-sigma and max), and the bearing error of target
+detections (the measurement candidate nearest to each visible target's true
+pixel, within 3 px). Uses only Debian's numpy.
+"""
+import csv, glob, json, math, os, sys
+import numpy as np
+
+
+def rot(q):  # [w, x, y, z], scalar first, rotates ECI components into camera components
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def main():
+    frames_dir, out_dir = sys.argv[1], sys.argv[2]
+    att = {int(r["frame"]): r for r in csv.DictReader(open(os.path.join(out_dir, "attitude.csv")))}
+    meas = {}
+    for r in csv.DictReader(open(os.path.join(out_dir, "measurements.csv"))):
+        meas.setdefault(int(r["frame"]), []).append(r)
+    eligible = solved = wrong = 0
+    cross, roll, bearing = [], [], []
+    for side in sorted(glob.glob(os.path.join(frames_dir, "frame_*.json"))):
+        k = int(os.path.basename(side)[6:12])
+        j = json.load(open(side))
+        if j.get("dropped"):
+            continue
+        bright = [s for s in j["stars"] if s["vmag"] <= 6.5]
+        if len(bright) < 4:
+            continue
+        eligible += 1
+        a = att.get(k)
+        if not a or a["status"] != "ok":
+            continue
+        solved += 1
+        Rt = rot(j["q_cam_from_eci"])
+        Re = rot([float(a[c]) for c in ("qw", "qx", "qy", "qz")])
+        D = Re @ Rt.T  # error rotation in camera axes
+        ang = math.acos(max(-1.0, min(1.0, (np.trace(D) - 1) / 2)))
+        if ang > math.radians(1 / 60):
+            wrong += 1
+            continue
+        # Small-angle error vector (camera axes): x, y cross-boresight, z roll.
+        e = np.array([D[2, 1] - D[1, 2], D[0, 2] - D[2, 0], D[1, 0] - D[0, 1]]) / 2
+        cross.append(math.hypot(e[0], e[1]))
+        roll.append(abs(e[2]))
+        for t in j["targets"]:
+            if not t["visible"] or t["x_px"] is None:
+                continue
+            best = None
+            for m in meas.get(k, []):
+                d = math.hypot(float(m["x_px"]) - t["x_px"], float(m["y_px"]) - t["y_px"])
+                if d < 3 and (best is None or d < best[0]):
+                    best = (d, m)
+            if best:
+                fx, cx, cy = j["fx_px"], j["cx_px"], j["cy_px"]
+                v = np.array([(t["x_px"] - cx) / fx, (t["y_px"] - cy) / j["fy_px"], 1.0])
+                u_true = Rt.T @ (v / np.linalg.norm(v))
+                m = best[1]
+                u = np.array([float(m["ux_eci"]), float(m["uy_eci"]), float(m["uz_eci"])])
+                bearing.append(math.acos(max(-1.0, min(1.0, float(u @ u_true)))))
+    arc = 180 / math.pi * 3600
+    res = {
+        "frames_with_4_stars": eligible, "attitude_solved": solved,
+        "solved_fraction": solved / eligible if eligible else None,
+        "accepted_wrong_gt_1arcmin": wrong,
+        "wrong_fraction": wrong / solved if solved else None,
+        "cross_boresight_1sigma_arcsec": float(np.sqrt(np.mean(np.square(cross))) * arc) if cross else None,
+        "cross_boresight_max_arcsec": float(max(cross) * arc) if cross else None,
+        "roll_1sigma_arcsec": float(np.sqrt(np.mean(np.square(roll))) * arc) if roll else None,
+        "target_detections_matched": len(bearing),
+        "target_bearing_1sigma_arcsec": float(np.sqrt(np.mean(np.square(bearing))) * arc) if bearing else None,
+        "target_bearing_max_arcsec": float(max(bearing) * arc) if bearing else None,
+    }
+    print(json.dumps(res, indent=1))
+    if "--json" in sys.argv:
+        json.dump(res, open(sys.argv[sys.argv.index("--json") + 1], "w"), indent=1)
+
+
+if __name__ == "__main__":
+    main()
