@@ -6,7 +6,11 @@ Prints attitude success rate on frames with >= 4 catalog stars of V <= 6.5,
 the rate of accepted attitudes wrong by more than 1 arcmin, the attitude error
 (cross-boresight and roll, 1-sigma and max), and the bearing error of target
 detections (the measurement candidate nearest to each visible target's true
-pixel, within 3 px). Uses only Debian's numpy.
+pixel, within 3 px), and SAMUS tracking: assignment precision (tracked
+measurements whose truth target is their track's), recall (target detections
+that ended in a track) and identity across eclipses (consecutive visibility
+segments of a target, split by gaps longer than 15 minutes, carried by the same
+track id). Uses only Debian's numpy.
 """
 import csv, glob, json, math, os, sys
 import numpy as np
@@ -26,12 +30,24 @@ def main():
     for r in csv.DictReader(open(os.path.join(out_dir, "measurements.csv"))):
         meas.setdefault(int(r["frame"]), []).append(r)
     eligible = solved = wrong = 0
+    labelled = []  # (t_ns, truth target, track id) of candidates matching a target
     cross, roll, bearing = [], [], []
+    tracked_rows = []  # (track id, truth target or None)
     for side in sorted(glob.glob(os.path.join(frames_dir, "frame_*.json"))):
         k = int(os.path.basename(side)[6:12])
         j = json.load(open(side))
         if j.get("dropped"):
             continue
+        for m in meas.get(k, []):
+            label = None
+            for t in j["targets"]:
+                if t["x_px"] is not None and \
+                        math.hypot(float(m["x_px"]) - t["x_px"], float(m["y_px"]) - t["y_px"]) < 3:
+                    label = t["id"]
+            if label is not None:
+                labelled.append((int(m["t_tt_ns"]), label, int(m["track_id"])))
+            if int(m["track_id"]) >= 0:
+                tracked_rows.append((int(m["track_id"]), label))
         bright = [s for s in j["stars"] if s["vmag"] <= 6.5]
         if len(bright) < 4:
             continue
@@ -66,6 +82,33 @@ def main():
                 m = best[1]
                 u = np.array([float(m["ux_eci"]), float(m["uy_eci"]), float(m["uz_eci"])])
                 bearing.append(math.acos(max(-1.0, min(1.0, float(u @ u_true)))))
+    # Tracking: a track's target is the truth target of most of its measurements.
+    from collections import Counter
+    votes = {}
+    for tid, label in tracked_rows:
+        votes.setdefault(tid, Counter())[label] += 1
+    track_target = {tid: c.most_common(1)[0][0] for tid, c in votes.items()}
+    correct = sum(1 for tid, label in tracked_rows if label is not None and label == track_target[tid])
+    recall_hits = sum(1 for _, _, tid in labelled if tid >= 0)
+    # Identity across eclipses: per target, segments of detections split by gaps > 15 min.
+    joins = kept = 0
+    by_target = {}
+    for t_ns, label, tid in sorted(labelled):
+        by_target.setdefault(label, []).append((t_ns, tid))
+    for label, rows in by_target.items():
+        segs, cur = [], [rows[0]]
+        for a, b in zip(rows, rows[1:]):
+            if b[0] - a[0] > 15 * 60 * 10**9:
+                segs.append(cur)
+                cur = []
+            cur.append(b)
+        segs.append(cur)
+        ids = [Counter(tid for _, tid in sg if tid >= 0).most_common(1) for sg in segs]
+        for a, b in zip(ids, ids[1:]):
+            if not a or not b:
+                continue  # a segment that was never tracked (counted in recall)
+            joins += 1
+            kept += a[0][0] == b[0][0]
     arc = 180 / math.pi * 3600
     res = {
         "frames_with_4_stars": eligible, "attitude_solved": solved,
@@ -78,6 +121,13 @@ def main():
         "target_detections_matched": len(bearing),
         "target_bearing_1sigma_arcsec": float(np.sqrt(np.mean(np.square(bearing))) * arc) if bearing else None,
         "target_bearing_max_arcsec": float(max(bearing) * arc) if bearing else None,
+        "tracked_measurements": len(tracked_rows), "tracks": len(votes),
+        "track_targets": {str(k): v for k, v in sorted(track_target.items())},
+        "assignment_precision": correct / len(tracked_rows) if tracked_rows else None,
+        "target_detections": len(labelled), "target_detections_tracked": recall_hits,
+        "recall": recall_hits / len(labelled) if labelled else None,
+        "eclipse_gaps": joins, "eclipse_gaps_same_identity": kept,
+        "identity_fraction": kept / joins if joins else None,
     }
     print(json.dumps(res, indent=1))
     if "--json" in sys.argv:

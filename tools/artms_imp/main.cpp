@@ -1,11 +1,11 @@
-// artms-imp CAMERA.yaml FRAMES_DIR --out DIR (DESIGN.md section 7): runs the
-// per-frame part of IMP offline over a folder of frames (16-bit PNG):
-// detection and centroids, Pyramid star identification (tracking mode when
-// the previous attitude is known), attitude; writes attitude.csv and the
-// non-star detections as measurement candidates in measurements.csv.
-// SAMUS tracking is not implemented yet: track_id is -1 and tracks.csv has
-// only its header (issue 6 stays open for it). Corrupt or unreadable frames
-// are reported and skipped.
+// artms-imp CAMERA.yaml FRAMES_DIR --out DIR (DESIGN.md section 7): runs IMP
+// offline over a folder of frames (16-bit PNG): per frame, detection,
+// Pyramid star identification, attitude and the removal of hot pixels and
+// uncatalogued stars (imp::FrameProcessor); across frames, SAMUS tracking
+// (imp::Samus) with the observer orbit of --observer-orbit. Writes
+// attitude.csv, measurements.csv (every candidate; track_id -1 when no track
+// took it) and tracks.csv. Corrupt or unreadable frames are reported and
+// skipped.
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -15,6 +15,8 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <map>
+#include <optional>
 #include <regex>
 
 #include "artms/astro/bearing.hpp"
@@ -23,7 +25,10 @@
 #include "artms/imaging/image.hpp"
 #include "artms/imaging/star_catalog.hpp"
 #include "artms/imp/detection.hpp"
+#include "artms/imp/frame_processor.hpp"
+#include "artms/imp/samus.hpp"
 #include "artms/imp/star_id.hpp"
+#include "orbit_table.hpp"
 
 namespace {
 
@@ -41,6 +46,19 @@ int run(int argc, char** argv) {
       ->required();
   app.add_option("--out", out, "output folder")->required();
   app.add_option("--vmag-limit", vmag_limit, "faintest catalog star used for identification")
+      ->capture_default_str();
+  std::string orbit_path;
+  app.add_option("--observer-orbit", orbit_path,
+                 "CSV with t_tt_ns,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps: a coarse observer orbit for SAMUS\n"
+                 "(artms-render's observer_orbit.csv, or a run's nav/<id>.csv); without it no tracking");
+  imp::SamusOptions samus_opt;
+  app.add_option("--dbscan-min-points", samus_opt.dbscan_min_points, "n_D")->capture_default_str();
+  double eps_px = 10.0;
+  app.add_option("--dbscan-radius-px", eps_px, "eps_D (pixels)")->capture_default_str();
+  app.add_option("--fit-window", samus_opt.fit_window, "measurements in the eq. (9) fit")->capture_default_str();
+  double floor_arcsec = 15.0;
+  app.add_option("--model-floor-arcsec", floor_arcsec, "eq. (9) model error per axis")->capture_default_str();
+  app.add_option("--dbscan-frames", samus_opt.dbscan_frames, "frames of unassigned candidates clustered")
       ->capture_default_str();
   try {
     app.parse(argc, argv);
@@ -80,16 +98,39 @@ int run(int argc, char** argv) {
     for (const auto& s : bsc.stars()) stars.push_back({s.catalog_id, s.unit_eci_at(t_cat)});
     const auto catalog = imp::StarIdCatalog::build(std::move(stars), 2.0 * K.half_diagonal_fov_rad());
 
+    samus_opt.dbscan_radius_rad = eps_px / K.fx;
+    samus_opt.model_floor_rad = floor_arcsec * astro::kArcsecToRad;
+    std::optional<OrbitTable> orbit;
+    if (!orbit_path.empty()) orbit = OrbitTable::load(orbit_path);
+    std::optional<imp::Samus> samus;
+    if (orbit) samus.emplace(samus_opt);
+    imp::FrameProcessor processor(K, catalog);
+
     fs::create_directories(out);
     std::ofstream att(fs::path(out) / "attitude.csv"), meas(fs::path(out) / "measurements.csv"),
         tracks(fs::path(out) / "tracks.csv");
     att << "frame,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec\n";
     meas << "frame,t_tt_ns,track_id,x_px,y_px,ux_eci,uy_eci,uz_eci,az_rad,el_rad,sigma_rad\n";
-    tracks << "track_id,first_frame,last_frame,measurements\n";
-    std::optional<Eigen::Quaterniond> prior;
-    int solved = 0, corrupt = 0;
+    tracks << "track_id,first_frame,last_frame,measurements,segments,fit_rms_arcsec\n";
+    // Candidates per frame; the track that took each (SAMUS decides later).
+    struct Row {
+      int frame;
+      std::int64_t t_ns;
+      imp::Candidate c;
+      int track = -1;
+    };
+    std::vector<Row> rows;
+    std::map<std::pair<int, int>, std::size_t> row_of;  // (frame, candidate) -> rows index
+    auto take = [&](const std::vector<imp::TrackedMeasurement>& released) {
+      for (const auto& m : released) {
+        const auto it = row_of.find({static_cast<int>(m.frame), m.candidate});
+        if (it != row_of.end()) rows[it->second].track = m.track_id;
+      }
+    };
+    int solved = 0, corrupt = 0, hot = 0, uncatalogued = 0, no_orbit = 0;
     char line[512];
-    for (const auto& path : frames) {
+    for (std::size_t fi = 0; fi < frames.size(); ++fi) {
+      const auto& path = frames[fi];
       const int k = std::stoi(std::regex_replace(path.filename().string(), name, "$1"));
       std::int64_t t_ns = 0;
       fs::path side = path;
@@ -117,53 +158,70 @@ int run(int argc, char** argv) {
         att << line;
         continue;
       }
-      const imp::DetectionResult det = imp::detect(img.pixels, img.width, img.height, imp::DetectionOptions{});
-      std::vector<std::size_t> order(det.centroids.size());
-      for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-      std::sort(order.begin(), order.end(), [&](auto a, auto b) { return det.centroids[a].flux_dn > det.centroids[b].flux_dn; });
-      std::vector<Eigen::Vector3d> dirs;
-      for (auto i : order) dirs.push_back(K.unproject({det.centroids[i].x_px, det.centroids[i].y_px}));
-      imp::StarIdResult id;
-      if (det.usable && dirs.size() >= 3) {
-        if (prior) id = imp::identify_with_prior(dirs, catalog, *prior, 0.2 * astro::kDegToRad);
-        if (!id.usable) id = imp::identify_lost_in_space(dirs, catalog, imp::StarIdOptions{});
-      }
-      const std::string status = !det.usable ? "no_detections" : (id.usable ? "ok" : "not_identified");
-      if (!id.usable) {
-        prior.reset();
-        std::snprintf(line, sizeof line, "%d,%lld,%s,,,,,%zu,\n", k, static_cast<long long>(t_ns),
-                      status.c_str(), id.matches.size());
+      const double t_s = static_cast<double>(t_ns) * 1e-9;
+      const imp::FrameSummary fr = processor.process(img.pixels, t_s);
+      hot += fr.hot_pixels_removed;
+      uncatalogued += fr.uncatalogued_stars_removed;
+      if (!fr.attitude_usable) {
+        std::snprintf(line, sizeof line, "%d,%lld,%s,,,,,%d,\n", k, static_cast<long long>(t_ns), fr.status.c_str(),
+                      fr.stars_matched);
         att << line;
         continue;
       }
       ++solved;
-      prior = id.q_cam_from_eci;
-      const auto q = astro::wxyz_from_quaternion(id.q_cam_from_eci);
-      std::snprintf(line, sizeof line, "%d,%lld,ok,%.12f,%.12f,%.12f,%.12f,%zu,%.3f\n", k,
-                    static_cast<long long>(t_ns), q[0], q[1], q[2], q[3], id.matches.size(),
-                    id.residual_rms_rad / astro::kArcsecToRad);
+      const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
+      std::snprintf(line, sizeof line, "%d,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f\n", k,
+                    static_cast<long long>(t_ns), q[0], q[1], q[2], q[3], fr.stars_matched,
+                    fr.residual_rms_rad / astro::kArcsecToRad);
       att << line;
-      // Non-star detections are measurement candidates (SAMUS will chain and
-      // filter them; uncatalogued stars are not removed yet).
-      std::vector<bool> is_star(order.size(), false);
-      for (const auto& [idx, cat] : id.matches) is_star[static_cast<std::size_t>(idx)] = true;
-      const Eigen::Matrix3d R_eci_from_cam = id.q_cam_from_eci.toRotationMatrix().transpose();
-      for (std::size_t n = 0; n < order.size(); ++n) {
-        if (is_star[n]) continue;
-        const auto& c = det.centroids[order[n]];
-        const Eigen::Vector3d u_cam = dirs[n];
-        const Eigen::Vector3d u_eci = R_eci_from_cam * u_cam;
-        const astro::Bearing b = astro::bearing_from_los(u_cam);
-        const double sigma = std::hypot(c.sigma_px / K.fx, id.residual_rms_rad);
-        std::snprintf(line, sizeof line, "%d,%lld,-1,%.4f,%.4f,%.12f,%.12f,%.12f,%.9f,%.9f,%.3e\n", k,
-                      static_cast<long long>(t_ns), c.x_px, c.y_px, u_eci.x(), u_eci.y(), u_eci.z(), b.az_rad,
-                      b.el_rad, sigma);
-        meas << line;
+      for (std::size_t i = 0; i < fr.candidates.size(); ++i) {
+        row_of[{k, static_cast<int>(i)}] = rows.size();
+        rows.push_back({k, t_ns, fr.candidates[i], -1});
+      }
+      if (samus) {
+        const auto x = orbit->at(t_ns);
+        if (!x) {
+          ++no_orbit;
+          continue;
+        }
+        imp::TrackerInput in;
+        in.frame = k;
+        in.t_s = t_s;
+        in.observer_eci = *x;
+        in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
+        in.candidates = fr.candidates;
+        take(samus->process(in).released);
+      }
+      if (frames.size() >= 100 && (fi + 1) % (frames.size() / 10) == 0) {
+        std::fprintf(stderr, "artms-imp: %zu / %zu frames\n", fi + 1, frames.size());
       }
     }
-    std::fprintf(stderr, "artms-imp: %zu frames, attitude solved on %d, %d corrupt or unreadable; "
-                 "tracks.csv is empty (SAMUS tracking not implemented yet)\n",
-                 frames.size(), solved, corrupt);
+    int tracked = 0;
+    if (samus) {
+      take(samus->flush());
+      for (const auto& t : samus->tracks()) {
+        std::snprintf(line, sizeof line, "%d,%lld,%lld,%d,%d,%.2f\n", t.track_id, static_cast<long long>(t.first_frame),
+                      static_cast<long long>(t.last_frame), t.measurements, t.segments,
+                      t.fit_rms_rad / astro::kArcsecToRad);
+        tracks << line;
+      }
+    }
+    for (const auto& r : rows) {
+      const Eigen::Vector3d& u = r.c.u_eci;
+      const astro::Bearing b = astro::bearing_from_los(r.c.u_cam);
+      std::snprintf(line, sizeof line, "%d,%lld,%d,%.4f,%.4f,%.12f,%.12f,%.12f,%.9f,%.9f,%.3e\n", r.frame,
+                    static_cast<long long>(r.t_ns), r.track, r.c.x_px, r.c.y_px, u.x(), u.y(), u.z(), b.az_rad,
+                    b.el_rad, r.c.sigma_rad);
+      meas << line;
+      if (r.track >= 0) ++tracked;
+    }
+    std::fprintf(stderr,
+                 "artms-imp: %zu frames, attitude solved on %d, %d corrupt or unreadable; removed %d hot pixels and %d "
+                 "uncatalogued stars; %zu candidates, %d in tracks (%s)\n",
+                 frames.size(), solved, corrupt, hot, uncatalogued, rows.size(), tracked,
+                 samus ? (std::to_string(samus->tracks().size()) + " tracks").c_str()
+                       : "no --observer-orbit: SAMUS tracking off");
+    if (no_orbit > 0) std::fprintf(stderr, "artms-imp: %d frames outside the observer orbit file: not tracked\n", no_orbit);
   } catch (const std::exception& e) {
     std::cerr << "artms-imp: error: " << e.what() << "\n";
     return 2;

@@ -74,6 +74,10 @@ int run(int argc, char** argv) {
     }
     const auto& cam = setup.renderer.camera();
     int dropped = 0;
+    // The observer's orbit at each frame (truth side): artms-imp --observer-orbit
+    // takes it, or any coarse estimate in the same columns (e.g. nav/<id>.csv).
+    std::ofstream orbit_csv(fs::path(out) / "observer_orbit.csv");
+    orbit_csv << "t_tt_ns,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps\n";
     for (int k = 0; k < count; ++k) {
       const astro::TimeTT t = t0.plus_seconds(k * every_s);
       imaging::RenderRequest req;
@@ -89,6 +93,13 @@ int run(int argc, char** argv) {
         }
       }
       req.q_cam_from_eci = setup.attitude(req.observer_eci, req.frame_index);
+      {
+        char row[256];
+        const auto& x = req.observer_eci;
+        std::snprintf(row, sizeof row, "%lld,%.4f,%.4f,%.4f,%.7f,%.7f,%.7f\n", static_cast<long long>(t.ns_since_j2000),
+                      x.r_m.x(), x.r_m.y(), x.r_m.z(), x.v_mps.x(), x.v_mps.y(), x.v_mps.z());
+        orbit_csv << row;
+      }
       const imaging::RenderedFrame f = setup.renderer.render(req);
       char stem[32];
       std::snprintf(stem, sizeof stem, "frame_%06d", k);
