@@ -1,5 +1,7 @@
-// artms-observer: one ARTMS process per observing spacecraft. Until IMP and
-// SOD land it runs the GNSS-only baseline (navigation mode 0): its own
+// artms-observer: one ARTMS process per observing spacecraft. It runs IMP on
+// the frames it receives (frame processing and SAMUS tracking) and reports
+// attitude and measurements as IMP telemetry; until SOD lands it navigates
+// with the GNSS-only baseline (navigation mode 0): its own
 // absolute orbit from GNSS fixes, propagated between fixes with the onboard
 // GVE/RK4 model. It never reads truth: it subscribes to its GNSS fixes only.
 #include <cmath>
@@ -10,11 +12,43 @@
 #include "artms/astro/elements.hpp"
 #include "artms/dynamics/gve.hpp"
 #include "artms/config/uplink.hpp"
+#include "artms/astro/bearing.hpp"
+#include "artms/astro/constants.hpp"
+#include "artms/imp/frame_processor.hpp"
+#include "artms/imp/samus.hpp"
 #include "artms/runtime/runtime.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 
 namespace {
 
 using namespace artms;
+
+// The uplinked onboard star catalog: catalog_id,ux_eci,uy_eci,uz_eci.
+std::vector<imp::CatalogStar> read_star_catalog(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open the onboard star catalog " + path);
+  std::string line;
+  std::getline(in, line);
+  std::vector<imp::CatalogStar> out;
+  int lineno = 1;
+  while (std::getline(in, line)) {
+    ++lineno;
+    std::stringstream ss(line);
+    std::string f[4];
+    for (auto& x : f) std::getline(ss, x, ',');
+    try {
+      imp::CatalogStar s{std::stoi(f[0]), Eigen::Vector3d(std::stod(f[1]), std::stod(f[2]), std::stod(f[3]))};
+      if (!s.u_eci.allFinite() || std::abs(s.u_eci.norm() - 1.0) > 1e-6) throw std::invalid_argument("not a unit vector");
+      out.push_back(s);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(path + ":" + std::to_string(lineno) + ": bad star row (" + e.what() + ")");
+    }
+  }
+  return out;
+}
 
 struct Fix {
   astro::TimeTT t;
@@ -40,15 +74,41 @@ int run(const runtime::ServiceOptions& opt) {
   dds::Reader<artms_msg_CameraFrame> frame_reader(participant, topics.camera_frame, runtime::frame_qos(me));
   dds::Writer<artms_msg_NavTelemetry> nav_writer(participant, topics.nav_telemetry, runtime::data_qos());
   runtime::EventLog events(participant, topics, opt.name);
+  dds::Writer<artms_msg_ImpReport> imp_writer(participant, topics.imp_report, runtime::data_qos());
+  // IMP (paper, "Image Processing"): the uplinked sensor calibration and star
+  // catalog, SAMUS tuned by the uplinked telecommands.
+  std::optional<imp::StarIdCatalog> catalog;
+  std::optional<imp::FrameProcessor> processor;
+  std::optional<imp::Samus> samus;
+  imp::Intrinsics K;
+  if (up.camera_calibration.present() && !up.star_catalog_file.empty()) {
+    const auto& c = up.camera_calibration;
+    K = {c.width_px, c.height_px, c.fx_px, c.fy_px, c.cx_px, c.cy_px, c.k1, c.k2};
+    const std::string cat_path =
+        (std::filesystem::path(opt.uplink_path).parent_path() / up.star_catalog_file).string();
+    catalog = imp::StarIdCatalog::build(read_star_catalog(cat_path), 2.0 * K.half_diagonal_fov_rad());
+    imp::FrameProcessorOptions fo;
+    fo.detection.threshold_sigma = up.tuning.imp.detection_sigma;
+    fo.detection.psf_sigma_px = c.psf_sigma_px;
+    fo.detection.gain_e_per_dn = c.gain_e_per_dn;
+    fo.detection.saturation_dn = c.saturation_dn;
+    processor.emplace(K, *catalog, fo);
+    imp::SamusOptions so;
+    so.dbscan_min_points = up.tuning.imp.dbscan_min_points;
+    so.dbscan_radius_rad = up.tuning.imp.dbscan_radius_px / c.fx_px;
+    so.dbscan_frames = up.tuning.imp.dbscan_frames;
+    samus.emplace(so);
+  }
   // The onboard model (the observer's own, not the truth propagator).
   const auto forces = dynamics::ForceModel::load(up.force_model, ARTMS_DATA_DIR);
   const dynamics::GveRk4Propagator onboard(forces, dynamics::SpacecraftProperties{});
 
   // Readers of what the observer writes: the recorder only (runtime::topology).
-  const std::map<std::string, int> rt = {{"nav_telemetry", 1}, {"event", 1}};
+  const std::map<std::string, int> rt = {{"nav_telemetry", 1}, {"event", 1}, {"imp_report", 1}};
   clock.announce_ready(participant,
                        {{"nav_telemetry writer", nav_writer.handle(), true, rt.at("nav_telemetry")},
                         {"event writer", events.writer().handle(), true, rt.at("event")},
+                        {"imp_report writer", imp_writer.handle(), true, rt.at("imp_report")},
                         {"gnss_fix reader", gnss_reader.handle(), false, cfg->gnss.enabled ? 1 : 0},
                         {"camera_frame reader", frame_reader.handle(), false, 1}},
                        60.0);
@@ -57,6 +117,8 @@ int run(const runtime::ServiceOptions& opt) {
   std::uint32_t frames_received = 0;
   std::size_t frames_rejected = 0;
   std::size_t rejected = 0;
+  std::size_t measurements_released = 0;
+  bool samus_flushed = false;
   bool announced = false;
   while (auto tick = clock.wait_tick()) {
     const astro::TimeTT t{tick->t_tt_ns};
@@ -64,7 +126,8 @@ int run(const runtime::ServiceOptions& opt) {
       announced = true;
       events.info(t.ns_since_j2000,
                   "navigation mode " + std::to_string(cfg->mode) +
-                      " requested; IMP/SOD not available yet: running the GNSS-only baseline (mode 0)");
+                      " requested; SOD not available yet: running IMP and the GNSS-only baseline (mode 0)" +
+                      (processor ? std::string() : std::string("; no camera calibration or star catalog uplinked: IMP off")));
     }
     gnss_reader.take_each([&](const artms_msg_GnssFix& f) {
       if (dds::to_string(f.spacecraft, sizeof f.spacecraft) != me || !f.valid) return;
@@ -80,18 +143,109 @@ int run(const runtime::ServiceOptions& opt) {
       }
       if (!last_fix || last_fix->t <= fix.t) last_fix = fix;
     });
-    // Camera frames (IMP arrives with the IMP issue): checked and counted.
+    // Camera frames: checked, then IMP (frame processing, SAMUS tracking with
+    // the coarse orbit from the latest GNSS fix); the decided measurements
+    // go out as IMP telemetry.
     frame_reader.take_each([&](const artms_msg_CameraFrame& f) {
       const bool ok = f.width > 0 && f.height > 0 && f.bit_depth > 0 && f.bit_depth <= 16 &&
                       f.pixels._length == static_cast<std::uint32_t>(f.width) * f.height;
-      if (!ok) {
+      artms_msg_ImpReport rep{};
+      dds::copy_string(rep.observer, sizeof rep.observer, me);
+      rep.frame_seq = f.frame_seq;
+      rep.t_tt_ns = f.time_tag_tt_ns;
+      if (!ok || (processor && (f.width != K.width || f.height != K.height))) {
         ++frames_rejected;
         events.warning(t.ns_since_j2000, "rejected a corrupt camera frame (" + std::to_string(frames_rejected) +
-                                             " so far): size does not match its header");
+                                             " so far): size does not match its header or the camera");
+        rep.status = 3;
+        imp_writer.write(rep);
         return;
       }
       ++frames_received;
+      if (!processor) return;
+      const double t_s = static_cast<double>(f.time_tag_tt_ns) * 1e-9;
+      const imp::FrameSummary fr =
+          processor->process(std::span<const std::uint16_t>(f.pixels._buffer, f.pixels._length), t_s);
+      rep.status = fr.attitude_usable ? 0 : (fr.status == "no_detections" ? 1 : 2);
+      rep.stars_matched = static_cast<std::uint32_t>(fr.stars_matched);
+      rep.candidates = static_cast<std::uint32_t>(fr.candidates.size());
+      rep.hot_pixels_removed = static_cast<std::uint32_t>(fr.hot_pixels_removed);
+      rep.uncatalogued_stars_removed = static_cast<std::uint32_t>(fr.uncatalogued_stars_removed);
+      std::vector<artms_msg_ImpMeasurement> out;
+      auto add = [&](std::uint32_t frame_seq, std::int64_t t_ns, int track, const imp::Candidate& c) {
+        artms_msg_ImpMeasurement m{};
+        m.frame_seq = frame_seq;
+        m.t_tt_ns = t_ns;
+        m.track_id = track;
+        m.x_px = c.x_px;
+        m.y_px = c.y_px;
+        for (int i = 0; i < 3; ++i) m.u_eci[i] = c.u_eci[i];
+        const astro::Bearing b = astro::bearing_from_los(c.u_cam);
+        m.az_rad = b.az_rad;
+        m.el_rad = b.el_rad;
+        m.sigma_rad = c.sigma_rad;
+        out.push_back(m);
+      };
+      if (fr.attitude_usable) {
+        const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
+        for (int i = 0; i < 4; ++i) rep.q_cam_from_eci[i] = q[static_cast<std::size_t>(i)];
+        rep.residual_arcsec = fr.residual_rms_rad / astro::kArcsecToRad;
+        if (last_fix) {
+          imp::TrackerInput in;
+          in.frame = f.frame_seq;
+          in.t_s = t_s;
+          const astro::TimeTT tf{f.time_tag_tt_ns};
+          in.observer_eci = astro::cartesian_from_qns(onboard.propagate(astro::qns_from_cartesian(last_fix->x), last_fix->t, tf));
+          in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
+          in.candidates = fr.candidates;
+          for (const auto& m : samus->process(in).released) {
+            add(static_cast<std::uint32_t>(m.frame), static_cast<std::int64_t>(std::llround(m.t_s * 1e9)), m.track_id,
+                m.c);
+          }
+        } else {
+          // No orbit yet: SAMUS cannot run; the candidates are reported untracked.
+          for (const auto& c : fr.candidates) add(f.frame_seq, f.time_tag_tt_ns, -1, c);
+        }
+      }
+      rep.measurements._buffer = out.data();
+      rep.measurements._length = rep.measurements._maximum = static_cast<std::uint32_t>(out.size());
+      rep.measurements._release = false;
+      imp_writer.write(rep);
+      measurements_released += out.size();
     });
+    // Last navigation step (the final tick only closes the run, and what is
+    // written then may not reach the recorder): SAMUS releases what it holds.
+    const bool last_step = !tick->final_step && t >= up.epoch.plus_seconds(up.duration_s - 0.5 * up.step_s);
+    if (last_step && samus && !samus_flushed) {
+      samus_flushed = true;
+      std::vector<artms_msg_ImpMeasurement> out;
+      for (const auto& m : samus->flush()) {
+        artms_msg_ImpMeasurement x{};
+        x.frame_seq = static_cast<std::uint32_t>(m.frame);
+        x.t_tt_ns = static_cast<std::int64_t>(std::llround(m.t_s * 1e9));
+        x.track_id = m.track_id;
+        x.x_px = m.c.x_px;
+        x.y_px = m.c.y_px;
+        for (int i = 0; i < 3; ++i) x.u_eci[i] = m.c.u_eci[i];
+        const astro::Bearing b = astro::bearing_from_los(m.c.u_cam);
+        x.az_rad = b.az_rad;
+        x.el_rad = b.el_rad;
+        x.sigma_rad = m.c.sigma_rad;
+        out.push_back(x);
+      }
+      artms_msg_ImpReport rep{};
+      dds::copy_string(rep.observer, sizeof rep.observer, me);
+      rep.t_tt_ns = t.ns_since_j2000;
+      rep.status = 4;
+      rep.measurements._buffer = out.data();
+      rep.measurements._length = rep.measurements._maximum = static_cast<std::uint32_t>(out.size());
+      rep.measurements._release = false;
+      imp_writer.write(rep);
+      measurements_released += out.size();
+      events.info(t.ns_since_j2000, "IMP: " + std::to_string(frames_received) + " frames, " +
+                                        std::to_string(samus->tracks().size()) + " tracks, " +
+                                        std::to_string(measurements_released) + " measurements reported");
+    }
     if (!tick->final_step) {
       artms_msg_NavTelemetry nav{};
       nav.frames_received = frames_received;
@@ -123,7 +277,8 @@ int run(const runtime::ServiceOptions& opt) {
       }
       nav_writer.write(nav);
     }
-    for (dds::Entity* w : {static_cast<dds::Entity*>(&nav_writer), static_cast<dds::Entity*>(&events.writer())}) {
+    for (dds::Entity* w : {static_cast<dds::Entity*>(&nav_writer), static_cast<dds::Entity*>(&events.writer()),
+                           static_cast<dds::Entity*>(&imp_writer)}) {
       dds::detail::wait_for_acks(w->handle(), opt.step_timeout_s);
     }
     clock.done(tick->step);

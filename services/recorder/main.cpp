@@ -1,6 +1,6 @@
 // artms-recorder: records every topic of a run into the run folder
 // (DESIGN.md section 8): truth.oem, nav/<observer>.csv, gnss.csv, isl.csv,
-// events.log. Output is deterministic: samples are buffered and written in
+// events.log, imp/<observer>/{attitude,measurements}.csv. Output is deterministic: samples are buffered and written in
 // (time, source) order once a step is complete (everything stamped before
 // tick k has been acknowledged by the time tick k arrives).
 #include <algorithm>
@@ -83,6 +83,7 @@ int run(const runtime::ServiceOptions& opt) {
   dds::Reader<artms_msg_LinkState> link_reader(participant, topics.link_state, q);
   dds::Reader<artms_msg_IslBroadcast> isl_reader(participant, topics.isl_broadcast, q);
   dds::Reader<artms_msg_FrameTruth> frame_truth_reader(participant, topics.frame_truth, q);
+  dds::Reader<artms_msg_ImpReport> imp_reader(participant, topics.imp_report, q);
 
   std::map<std::string, std::unique_ptr<SortedSink>> nav;
   for (const auto& o : sc.observers) {
@@ -90,6 +91,20 @@ int run(const runtime::ServiceOptions& opt) {
         dir / "nav" / (o.spacecraft + ".csv"),
         "t_utc,t_tt_ns,mode,health,source,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,"
         "sigma_x_m,sigma_y_m,sigma_z_m,sigma_vx_mps,sigma_vy_mps,sigma_vz_mps,targets,frames_received");
+  }
+  // IMP telemetry per observer, the columns of artms-imp (DESIGN.md section 7).
+  // Measurements are decided by SAMUS a few frames late: that file is kept
+  // in memory and written sorted by frame time at the end of the run.
+  std::map<std::string, std::unique_ptr<SortedSink>> imp_attitude, imp_meas;
+  for (const auto& o : sc.observers) {
+    fs::create_directories(dir / "imp" / o.spacecraft);
+    imp_attitude[o.spacecraft] = std::make_unique<SortedSink>(
+        dir / "imp" / o.spacecraft / "attitude.csv",
+        "frame,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,candidates,hot_pixels_removed,"
+        "uncatalogued_stars_removed");
+    imp_meas[o.spacecraft] = std::make_unique<SortedSink>(
+        dir / "imp" / o.spacecraft / "measurements.csv",
+        "frame,t_tt_ns,track_id,x_px,y_px,ux_eci,uy_eci,uz_eci,az_rad,el_rad,sigma_rad");
   }
   SortedSink targets(dir / "nav" / "targets.csv",
                      "t_utc,t_tt_ns,observer,target,da,dlambda,dex,dey,dix,diy,"
@@ -182,6 +197,33 @@ int run(const runtime::ServiceOptions& opt) {
                               dds::to_string(tp.reason, sizeof tp.reason).c_str()));
       }
     });
+    imp_reader.take_each([&](const artms_msg_ImpReport& r) {
+      const std::string id = dds::to_string(r.observer, sizeof r.observer);
+      auto it = imp_attitude.find(id);
+      if (it == imp_attitude.end()) {
+        ++rejected;
+        return;
+      }
+      static const char* kStatus[] = {"ok", "no_detections", "not_identified", "corrupt", "end"};
+      if (r.status == 0) {
+        it->second->add(r.t_tt_ns, id,
+                        fmt("%u,%lld,ok,%.12f,%.12f,%.12f,%.12f,%u,%.3f,%u,%u,%u", r.frame_seq,
+                            static_cast<long long>(r.t_tt_ns), r.q_cam_from_eci[0], r.q_cam_from_eci[1],
+                            r.q_cam_from_eci[2], r.q_cam_from_eci[3], r.stars_matched, r.residual_arcsec,
+                            r.candidates, r.hot_pixels_removed, r.uncatalogued_stars_removed));
+      } else if (r.status < 4) {
+        it->second->add(r.t_tt_ns, id,
+                        fmt("%u,%lld,%s,,,,,%u,,0,0,0", r.frame_seq, static_cast<long long>(r.t_tt_ns),
+                            kStatus[r.status], r.stars_matched));
+      }
+      for (std::uint32_t k = 0; k < r.measurements._length; ++k) {
+        const auto& m = r.measurements._buffer[k];
+        imp_meas[id]->add(m.t_tt_ns, id,
+                          fmt("%u,%lld,%d,%.4f,%.4f,%.12f,%.12f,%.12f,%.9f,%.9f,%.3e", m.frame_seq,
+                              static_cast<long long>(m.t_tt_ns), m.track_id, m.x_px, m.y_px, m.u_eci[0],
+                              m.u_eci[1], m.u_eci[2], m.az_rad, m.el_rad, m.sigma_rad));
+      }
+    });
     isl_reader.take_each([&](const artms_msg_IslBroadcast& b) {
       const std::string s = dds::to_string(b.sender, sizeof b.sender);
       isl.add(b.t_tt_ns, s,
@@ -191,6 +233,10 @@ int run(const runtime::ServiceOptions& opt) {
   };
   const auto flush_all = [&](std::int64_t limit) {
     for (auto& [id, sink] : nav) sink->flush(limit);
+    for (auto& [id, sink] : imp_attitude) sink->flush(limit);
+    if (limit == std::numeric_limits<std::int64_t>::max()) {
+      for (auto& [id, sink] : imp_meas) sink->flush(limit);
+    }
     targets.flush(limit);
     gnss.flush(limit);
     isl.flush(limit);

@@ -25,11 +25,45 @@
 #include <vector>
 
 #include "artms/config/uplink.hpp"
+#include "artms/imaging/camera.hpp"
+#include "artms/imaging/star_catalog.hpp"
 #include "artms/io/duration.hpp"
 #include "artms/io/oem.hpp"
 #include "artms/runtime/runtime.hpp"
 
 namespace {
+
+// Ground calibration of a camera model (config/cameras/<model>.yaml).
+artms::config::CameraCalibration camera_calibration(const std::string& model) {
+  const auto cam = artms::imaging::CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/" + model + ".yaml");
+  artms::config::CameraCalibration c;
+  c.width_px = cam.width_px;
+  c.height_px = cam.height_px;
+  c.fx_px = cam.fx_px;
+  c.fy_px = cam.fy_px;
+  c.cx_px = cam.cx_px;
+  c.cy_px = cam.cy_px;
+  c.k1 = cam.k1;
+  c.k2 = cam.k2;
+  c.psf_sigma_px = cam.psf_sigma_px;
+  c.gain_e_per_dn = cam.gain_e_per_dn;
+  c.saturation_dn = cam.max_dn();
+  return c;
+}
+
+void write_onboard_star_catalog(const std::filesystem::path& path, artms::astro::TimeTT epoch) {
+  const auto bsc = artms::imaging::StarCatalog::load_bsc5(std::string(ARTMS_DATA_DIR) + "/stars/bsc5.dat", 6.5);
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("cannot write " + path.string());
+  out << "catalog_id,ux_eci,uy_eci,uz_eci\n";
+  char line[160];
+  for (const auto& s : bsc.stars()) {
+    const auto u = s.unit_eci_at(epoch);
+    std::snprintf(line, sizeof line, "%d,%.15f,%.15f,%.15f\n", s.catalog_id, u.x(), u.y(), u.z());
+    out << line;
+  }
+}
+
 
 using namespace artms;
 namespace fs = std::filesystem;
@@ -259,9 +293,15 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   const auto wall0 = Clock::now();
   // Observers get only what the ground uplinks (no truth); the rest read the scenario.
   fs::create_directories(dir / "uplink");
+  // The onboard star catalog (V <= 6.5 BSC5 directions at the epoch) and
+  // each camera's calibration go up with the uplink: IMP needs both and
+  // never reads the renderer's files.
+  write_onboard_star_catalog(dir / "uplink" / "star_catalog.csv", sc.epoch);
   for (const auto& o : sc.observers) {
-    config::write_uplink(config::make_uplink(sc, o.spacecraft),
-                         (dir / "uplink" / (o.spacecraft + ".json")).string());
+    config::ObserverUplink up = config::make_uplink(sc, o.spacecraft);
+    up.camera_calibration = camera_calibration(o.camera.model);
+    up.star_catalog_file = "star_catalog.csv";
+    config::write_uplink(up, (dir / "uplink" / (o.spacecraft + ".json")).string());
   }
   for (const auto& name : services) {
     const bool observer = name.rfind("observer-", 0) == 0;

@@ -77,6 +77,15 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
        {{"enabled", u.crosslink_enabled}, {"period_s", u.isl_period_s},
         {"use_remote_gnss", u.use_remote_gnss}}},
       {"swarm_ids", u.swarm_ids},
+      {"camera_calibration",
+       {{"width_px", u.camera_calibration.width_px}, {"height_px", u.camera_calibration.height_px},
+        {"fx_px", u.camera_calibration.fx_px}, {"fy_px", u.camera_calibration.fy_px},
+        {"cx_px", u.camera_calibration.cx_px}, {"cy_px", u.camera_calibration.cy_px},
+        {"k1", u.camera_calibration.k1}, {"k2", u.camera_calibration.k2},
+        {"psf_sigma_px", u.camera_calibration.psf_sigma_px},
+        {"gain_e_per_dn", u.camera_calibration.gain_e_per_dn},
+        {"saturation_dn", u.camera_calibration.saturation_dn}}},
+      {"star_catalog_file", u.star_catalog_file},
   };
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write uplink file " + path);
@@ -148,6 +157,22 @@ ObserverUplink read_uplink(const std::string& path) {
     u.isl_period_s = c.at("period_s").get<double>();
     u.use_remote_gnss = c.at("use_remote_gnss").get<bool>();
     u.swarm_ids = j.at("swarm_ids").get<std::vector<std::string>>();
+    if (j.contains("camera_calibration")) {
+      const auto& k = j.at("camera_calibration");
+      auto& c = u.camera_calibration;
+      c.width_px = k.at("width_px").get<int>();
+      c.height_px = k.at("height_px").get<int>();
+      c.fx_px = k.at("fx_px").get<double>();
+      c.fy_px = k.at("fy_px").get<double>();
+      c.cx_px = k.at("cx_px").get<double>();
+      c.cy_px = k.at("cy_px").get<double>();
+      c.k1 = k.at("k1").get<double>();
+      c.k2 = k.at("k2").get<double>();
+      c.psf_sigma_px = k.at("psf_sigma_px").get<double>();
+      c.gain_e_per_dn = k.at("gain_e_per_dn").get<double>();
+      c.saturation_dn = k.at("saturation_dn").get<double>();
+    }
+    if (j.contains("star_catalog_file")) u.star_catalog_file = j.at("star_catalog_file").get<std::string>();
     return u;
   } catch (const json::exception& e) {
     throw std::runtime_error(path + ": malformed uplink: " + e.what());

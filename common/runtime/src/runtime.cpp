@@ -35,7 +35,8 @@ TopicSet::TopicSet(const dds::Participant& p)
       isl_broadcast(p, &artms_msg_IslBroadcast_desc, "artms_isl_broadcast"),
       nav_telemetry(p, &artms_msg_NavTelemetry_desc, "artms_nav_telemetry"),
       link_state(p, &artms_msg_LinkState_desc, "artms_link_state"),
-      event(p, &artms_msg_Event_desc, "artms_event") {}
+      event(p, &artms_msg_Event_desc, "artms_event"),
+      imp_report(p, &artms_msg_ImpReport_desc, "artms_imp_report") {}
 
 dds::QosProfile clock_qos() { return {true, true, 1, 0, {}}; }
 dds::QosProfile step_done_qos() { return {true, true, 1, 0, {}}; }
@@ -57,6 +58,7 @@ Topology topology(const config::Scenario& s) {
       {"gnss_fix", gnss_readers},       // observers with GNSS, recorder
       {"nav_telemetry", 1},             // recorder
       {"frame_truth", 1},               // recorder (evaluation only)
+      {"imp_report", 1},                // recorder
       {"link_state", 1},                // recorder
       {"event", 1},                     // recorder
   };

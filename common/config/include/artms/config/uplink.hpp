@@ -13,6 +13,19 @@
 
 namespace artms::config {
 
+// The onboard sensor model (the ground calibration of the camera): what IMP
+// needs to turn pixels into lines of sight. Zero width: not uplinked.
+struct CameraCalibration {
+  int width_px = 0;
+  int height_px = 0;
+  double fx_px = 0.0, fy_px = 0.0, cx_px = 0.0, cy_px = 0.0;
+  double k1 = 0.0, k2 = 0.0;
+  double psf_sigma_px = 1.2;
+  double gain_e_per_dn = 2.4;
+  double saturation_dn = 4095.0;
+  [[nodiscard]] bool present() const { return width_px > 0 && height_px > 0 && fx_px > 0.0 && fy_px > 0.0; }
+};
+
 struct ObserverUplink {
   std::string scenario_name;
   astro::TimeTT epoch;
@@ -26,6 +39,10 @@ struct ObserverUplink {
   double isl_period_s = 60.0;
   bool use_remote_gnss = false;
   std::vector<std::string> swarm_ids;  // every spacecraft id (no orbits)
+  CameraCalibration camera_calibration;
+  // Onboard star catalog (CSV catalog_id,ux,uy,uz: unit ECI J2000 directions
+  // at the scenario epoch), relative to the uplink file's folder; empty: none.
+  std::string star_catalog_file;
 };
 
 // Throws std::out_of_range if `spacecraft` is not an observer of s.
