@@ -89,6 +89,26 @@ TEST(SodLayout, IndicesAndAngles) {
   EXPECT_FALSE(l.is_angle(l.aux_offset() + 1));
 }
 
+// An appended auxiliary state is held constant and random-walks with q_aux.
+TEST(SodLayout, AuxiliaryStateIsConstantWithRandomWalk) {
+  SodOptions o;
+  o.q_aux = 1e-4;
+  o.adaptive.enabled = false;
+  SodFilter f(testing::j2_forces(), {}, {}, StateLayout{1, 1}, o);
+  const astro::QnsElements obs = testing::observer_at_start();
+  VectorXd aux(1);
+  aux << 0.25;
+  const VectorXd x = f.make_state(obs, {astro::Roe::from_scaled_m(testing::starling_a_roe_m()[0], obs.a_m)}, aux);
+  VectorXd sd = VectorXd::Constant(13, 1e-8);
+  sd[0] = 1.0;
+  sd[12] = 0.01;
+  f.initialize(kT0, x, sd.cwiseAbs2().asDiagonal());
+  ASSERT_TRUE(f.time_update(kT0.plus_seconds(100.0)).usable);
+  const int i = f.layout().aux_offset();
+  EXPECT_NEAR(f.state()[i], 0.25, 1e-12);
+  EXPECT_NEAR(f.covariance()(i, i), 1e-4 + 1e-4 * 100.0, 1e-12);
+}
+
 // Gating: a 0.05 rad outlier is rejected and counted, the state is untouched;
 // the true measurement right after is accepted.
 TEST(SodGating, RejectsOutlierAndCountsIt) {

@@ -41,7 +41,8 @@ inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Adaptive process noise (Sullivan, Koenig & D'Amico 2017; Stacey & D'Amico
 // 2018), covariance matching on the state correction dx = K nu, per state:
-//   q_k = alpha q_{k-1} + (1 - alpha) diag(sum dx dx^T) / dt_{k-1}
+//   q^  = q_{k-1} + diag(sum (dx dx^T - K S K^T)) / dt_{k-1}
+//   q_k = alpha q_{k-1} + (1 - alpha) q^
 // clamped to [floor_factor, ceiling_factor] x the nominal q (docs/sod.md).
 struct AdaptiveNoiseOptions {
   bool enabled = true;
@@ -274,7 +275,7 @@ class SodFilter {
   VectorXd x_;
   MatrixXd P_;
   VectorXd q_nominal_, q_;
-  VectorXd pending_dx2_;  // sum of dx^2 since the last time update
+  VectorXd pending_dx2_;  // sum of dx^2 - diag(K S K^T) since the last time update
   bool pending_ = false;
   double last_dt_s_ = 0.0;
   bool initialized_ = false;
