@@ -1,0 +1,49 @@
+// Ground a-priori of a target's ROE whose ground orbit solution is `age`
+// days old (docs/sod.md, "A-priori error model"). Errors in a_o * ROE meters.
+//
+// Errors at the epoch of the ground solution are independent and zero-mean;
+// afterwards the relative semi-major axis error drifts with an uncertain
+// differential drag rate and the mean-argument-of-latitude error integrates
+// it (Keplerian drift d(dlambda)/dt = -1.5 n da, D'Amico 2010):
+//   da(t)      = da0 + dadot t
+//   dlambda(t) = dlambda0 - 1.5 n (da0 t + dadot t^2 / 2)
+//   de(t), di(t) = e0, i0 + random-walk-like growth (rate * t)
+// so sigma_dlambda ~ 1.5 n sigma_da0 t dominates after a few hours.
+#pragma once
+
+#include <random>
+
+#include "artms/astro/frames.hpp"
+
+namespace artms::sod {
+
+struct AprioriErrorModel {
+  // 1-sigma at the epoch of the ground solution, a_o * ROE meters. 15 m of
+  // a*da is da ~ 2e-6 (ground OD from GNSS telemetry: 1e-6..1e-5).
+  double sigma_a_da0_m = 15.0;
+  double sigma_a_dlambda0_m = 100.0;
+  double sigma_a_de0_m = 30.0;  // per component (dex, dey)
+  double sigma_a_di0_m = 30.0;  // per component (dix, diy)
+  // Growth per day: a*da from differential drag (~10 % of ~35 m/day decay of
+  // a 6U CubeSat at 500 km), de and di from unmodelled J2/drag differences.
+  double sigma_a_da_rate_mpd = 3.0;
+  double sigma_a_de_rate_mpd = 2.0;
+  double sigma_a_di_rate_mpd = 1.0;
+  // Throws std::invalid_argument naming the field (all must be >= 0, finite).
+  void validate() const;
+};
+
+struct AprioriRoe {
+  astro::Vec6 sigma_a_roe_m = astro::Vec6::Zero();  // sqrt(diag(P_a_roe_m2))
+  astro::Mat6 P_a_roe_m2 = astro::Mat6::Zero();     // includes the da-dlambda correlation
+  astro::Mat6 P_roe = astro::Mat6::Zero();          // dimensionless (divided by a_o^2)
+};
+
+// Throws std::invalid_argument for age_days < 0, a_observer_m <= 0 or a bad model.
+AprioriRoe apriori_from_age(double age_days, double a_observer_m,
+                            const AprioriErrorModel& model = {});
+
+// One draw of the a-priori error (a_o * ROE meters) from N(0, P_a_roe_m2).
+astro::Vec6 draw_apriori_error_a_roe_m(const AprioriRoe& apriori, std::mt19937_64& rng);
+
+}  // namespace artms::sod

@@ -1,0 +1,291 @@
+// Sequential Orbit Determination (paper, "Sequential Orbit Determination";
+// Sullivan & D'Amico 2020): an unscented Kalman filter on the observer's
+// absolute elements and the ROE of N targets (state_layout.hpp), with the
+// nonlinear GVE-RK4 dynamics (gve.hpp), the nonlinear bearing model (paper
+// eq. 2) and GNSS position/velocity of the observer, adaptive process noise,
+// Mahalanobis gating and the paper's four health checks. Equations: docs/sod.md.
+//
+// Units: state as in state_layout.hpp (SI, ROE dimensionless); times TT.
+// Failures at run time (a Cholesky that fails, a measurement the model cannot
+// evaluate) come back as summaries with usable = false and a reason; the
+// state and covariance are then left as they were. Bad options or inputs at
+// set-up throw std::invalid_argument naming the field.
+#pragma once
+
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "artms/astro/bearing.hpp"
+#include "artms/astro/elements.hpp"
+#include "artms/astro/roe.hpp"
+#include "artms/dynamics/gve.hpp"
+#include "artms/sod/state_layout.hpp"
+
+namespace artms::sod {
+
+using astro::Mat3;
+using astro::Mat6;
+using astro::TimeTT;
+using astro::Vec3;
+using astro::Vec6;
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+inline constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Adaptive process noise (Sullivan, Koenig & D'Amico 2017; Stacey & D'Amico
+// 2018), covariance matching on the state correction dx = K nu, per state:
+//   q^  = q_{k-1} + diag(sum (dx dx^T - K S K^T)) / dt_{k-1}
+//   q_k = alpha q_{k-1} + (1 - alpha) q^
+// clamped to [floor_factor, ceiling_factor] x the nominal q (docs/sod.md).
+struct AdaptiveNoiseOptions {
+  bool enabled = true;
+  double forgetting = 0.95;  // alpha, in (0, 1)
+  double floor_factor = 0.1;
+  double ceiling_factor = 100.0;
+};
+
+// Thresholds of the paper's four health checks.
+struct HealthOptions {
+  // (1) SOD versus the latest BOD estimate of a target: Mahalanobis distance
+  // of the ROE difference with P_sod + P_bod, and the difference's norm
+  // relative to the BOD ROE norm (a*ROE). Either one above its threshold fails.
+  double bod_max_mahalanobis = 6.0;
+  double bod_max_relative = 0.2;
+  // (2) successive time updates without an accepted measurement update
+  // (per target for bearings, and for the filter for any measurement).
+  int max_steps_without_update = 180;
+  // (3) successive measurement updates whose pre-fit residual has a
+  // Mahalanobis distance above large_residual_mahalanobis.
+  int max_large_residuals = 10;
+  double large_residual_mahalanobis = 3.0;
+  // (4) valid range: observer a in [min_a_m, max_a_m], e below max_e, every
+  // |a_o * ROE| component below max_a_roe_m, everything finite, P positive definite.
+  double min_a_m = astro::kRadiusEarth_m + 100e3;
+  double max_a_m = 50000e3;
+  double max_e = 0.1;
+  double max_a_roe_m = 2000e3;
+};
+
+struct SodOptions {
+  dynamics::GvePropagatorOptions propagator;  // RK4 step (30 s, paper)
+  // Scaled unscented transform (Wan & van der Merwe 2000):
+  // lambda = ukf_alpha^2 (n + ukf_kappa) - n; the sigma points sit at
+  // +-sqrt(n + lambda) columns of chol(P).
+  double ukf_alpha = 1.0;
+  double ukf_beta = 2.0;
+  double ukf_kappa = 0.0;
+  // Nominal process noise as a white-noise rate (variance per second), added
+  // as Q = diag(q) dt. Observer: state units^2 / s (m^2/s for a, rad^2/s for
+  // angles, 1/s for ex, ey). Targets: (a_o * ROE) m^2/s, converted to the
+  // dimensionless state with the observer's a at initialisation.
+  Vec6 q_observer = (Vec6() << 4e-5, 2e-18, 2e-18, 2e-18, 2e-18, 1e-16).finished();
+  Vec6 q_target_a_roe_m2ps = (Vec6() << 2e-6, 2e-4, 2e-6, 2e-6, 2e-6, 2e-6).finished();
+  double q_aux = 0.0;  // per auxiliary state, state units^2 / s
+  AdaptiveNoiseOptions adaptive;
+  // Measurements whose innovation Mahalanobis distance sqrt(nu^T S^-1 nu)
+  // exceeds these are rejected (counted, state untouched). kInf disables.
+  double bearing_gate_mahalanobis = 5.0;
+  double gnss_gate_mahalanobis = 6.0;
+  HealthOptions health;
+
+  // Throws std::invalid_argument naming the offending field.
+  void validate() const;
+};
+
+// Bearing angles of paper eq. (2) to target `target`, measured in the camera
+// frame V whose attitude R_v_from_eci comes with the measurement.
+struct BearingMeasurement {
+  TimeTT t;
+  int target = 0;
+  astro::Bearing angles;
+  double sigma_az_rad = 0.0;
+  double sigma_el_rad = 0.0;
+  Mat3 R_v_from_eci = Mat3::Identity();
+};
+// From an inertial unit line of sight (ECI) observer -> target: the angles it
+// makes in the frame R_v_from_eci (identity: angles in ECI components).
+BearingMeasurement bearing_measurement_from_unit_eci(TimeTT t, int target, const Vec3& los_eci,
+                                                     double sigma_rad,
+                                                     const Mat3& R_v_from_eci = Mat3::Identity());
+
+// GNSS navigation solution of the observer: ECI position and velocity.
+struct GnssMeasurement {
+  TimeTT t;
+  astro::StateVector x_eci;
+  double sigma_r_m = 0.0;
+  double sigma_v_mps = 0.0;
+};
+
+struct TimeUpdateSummary {
+  bool usable = false;
+  std::string why;
+  double dt_s = 0.0;
+  int propagations = 0;  // calls of GveRk4Propagator::propagate
+};
+
+struct UpdateSummary {
+  bool usable = false;  // state and covariance were updated
+  bool gated = false;   // rejected by the Mahalanobis gate
+  std::string why;
+  int target = -1;      // -1 for GNSS
+  VectorXd prefit_residual;   // z - h(x-), angles wrapped to (-pi, pi]
+  VectorXd postfit_residual;  // z - h(x+), when usable
+  double nis = kNaN;          // nu^T S^-1 nu
+  double mahalanobis = kNaN;  // sqrt(nis)
+  [[nodiscard]] std::string brief_report() const;
+};
+
+enum class HealthCondition {
+  kHealthy,
+  kBodDisagreement,      // (1)
+  kNoMeasurementUpdate,  // (2)
+  kLargeResiduals,       // (3)
+  kOutOfRange,           // (4), also non-finite or non-positive-definite
+};
+std::string_view to_string(HealthCondition c);
+
+struct HealthStatus {
+  HealthCondition condition = HealthCondition::kHealthy;
+  std::string reason;
+  [[nodiscard]] bool healthy() const { return condition == HealthCondition::kHealthy; }
+};
+
+struct HealthReport {
+  HealthStatus filter;                // observer block and whole-filter checks
+  std::vector<HealthStatus> targets;  // one per target
+  [[nodiscard]] bool healthy() const;
+};
+
+// A BOD estimate of one target's ROE (dimensionless) at the filter's epoch.
+struct BodEstimate {
+  TimeTT t;
+  Vec6 roe = Vec6::Zero();
+  Mat6 P_roe = Mat6::Zero();
+};
+
+struct BodComparison {
+  bool usable = false;
+  std::string why;
+  double mahalanobis = kNaN;
+  double relative_distance = kNaN;
+  bool disagrees = false;
+};
+
+struct TargetCounters {
+  int steps_without_update = 0;
+  int consecutive_large_residuals = 0;
+  int accepted = 0;
+  int rejected = 0;
+};
+
+class SodFilter {
+ public:
+  // forces must outlive the filter. Throws std::invalid_argument for bad
+  // options or a layout without targets.
+  SodFilter(const dynamics::ForceModel& forces, const dynamics::SpacecraftProperties& observer_sc,
+            const dynamics::SpacecraftProperties& target_sc, StateLayout layout,
+            SodOptions options = {});
+
+  // Sets epoch, mean and covariance (layout().size()). Throws
+  // std::invalid_argument for a wrong size, non-finite values or a P that is
+  // not symmetric positive definite. Also resets counters and process noise.
+  void initialize(TimeTT t, const VectorXd& x, const MatrixXd& P);
+  // Stacks an observer and target ROE (and aux, may be empty) into a state.
+  [[nodiscard]] VectorXd make_state(const astro::QnsElements& observer,
+                                    const std::vector<astro::Roe>& roe,
+                                    const VectorXd& aux = VectorXd()) const;
+
+  // Propagates every sigma point with the GVE-RK4 dynamics to t and adds
+  // Q = diag(q) |dt|. Sigma points that differ from the mean only in later
+  // blocks reuse the mean's propagation (Stacey & D'Amico 2018).
+  TimeUpdateSummary time_update(TimeTT t);
+  // Unscented measurement updates; each propagates to the measurement epoch
+  // first when it differs from epoch().
+  UpdateSummary update_bearing(const BearingMeasurement& m);
+  UpdateSummary update_gnss(const GnssMeasurement& m);
+
+  // Health check (1): compares a BOD estimate (at epoch()) with the target's
+  // block and stores the result for health() and reinitialize_target_from_bod().
+  BodComparison check_bod(int target, const BodEstimate& bod);
+  // All four checks on the current estimate.
+  [[nodiscard]] HealthReport health() const;
+
+  // Re-initialisation: replaces a target's block with the given mean (ROE,
+  // dimensionless) and covariance, clears its cross-covariances and counters.
+  // Throws std::invalid_argument if P_roe is not symmetric positive definite.
+  void reinitialize_target(int target, const Vec6& roe, const Mat6& P_roe);
+  // From the latest estimate passed to check_bod(); false if there is none.
+  bool reinitialize_target_from_bod(int target);
+  void reinitialize_observer(const astro::QnsElements& observer, const Mat6& P);
+
+  // Normalised estimation error squared (x^ - x)^T P^-1 (x^ - x), angles
+  // wrapped; NaN if P is not positive definite. x_true has layout().size().
+  [[nodiscard]] double nees(const VectorXd& x_true) const;
+  // a - b with the angle components of the layout wrapped to (-pi, pi].
+  [[nodiscard]] VectorXd state_difference(const VectorXd& a, const VectorXd& b) const;
+
+  [[nodiscard]] const StateLayout& layout() const { return layout_; }
+  [[nodiscard]] const SodOptions& options() const { return options_; }
+  [[nodiscard]] TimeTT epoch() const { return t_; }
+  [[nodiscard]] const VectorXd& state() const { return x_; }
+  [[nodiscard]] const MatrixXd& covariance() const { return P_; }
+  [[nodiscard]] astro::QnsElements observer() const;
+  [[nodiscard]] astro::Roe roe(int target) const;
+  // a_o * ROE and its 1-sigma, meters.
+  [[nodiscard]] Vec6 a_roe_m(int target) const;
+  [[nodiscard]] Vec6 a_roe_sigma_m(int target) const;
+  // Current (adapted) process noise rate q, state units^2 / s.
+  [[nodiscard]] const VectorXd& process_noise_rate() const { return q_; }
+  [[nodiscard]] const TargetCounters& counters(int target) const;
+  [[nodiscard]] int steps_without_update() const { return steps_without_update_; }
+  [[nodiscard]] int rejected_total() const { return rejected_total_; }
+  // UKF weights (mean, covariance) for the 2n+1 sigma points.
+  [[nodiscard]] const VectorXd& weights_mean() const { return wm_; }
+  [[nodiscard]] const VectorXd& weights_covariance() const { return wc_; }
+
+ private:
+  struct MeasurementModel;
+  UpdateSummary unscented_update(const MeasurementModel& model, const VectorXd& z,
+                                 const VectorXd& r_diag, double gate, int target);
+  [[nodiscard]] bool sigma_points(MatrixXd& X) const;
+  void wrap_state(VectorXd& x) const;
+  // Symmetrises P, checks x finite and P positive definite, wraps and keeps
+  // both; false (nothing changed) otherwise.
+  bool store(VectorXd x, MatrixXd P);
+  // Time update to a measurement epoch; false with s.why set on failure.
+  bool advance_to(TimeTT t, UpdateSummary& s);
+  void adapt_process_noise();
+
+  dynamics::GveRk4Propagator observer_prop_;
+  dynamics::GveRk4Propagator target_prop_;
+  double gm_m3ps2_;
+  StateLayout layout_;
+  SodOptions options_;
+  double gamma_ = 0.0;
+  VectorXd wm_, wc_;
+
+  TimeTT t_;
+  VectorXd x_;
+  MatrixXd P_;
+  VectorXd q_nominal_, q_;
+  VectorXd pending_dx2_;  // sum of dx^2 - diag(K S K^T) since the last time update
+  bool pending_ = false;
+  double last_dt_s_ = 0.0;
+  bool initialized_ = false;
+
+  std::vector<TargetCounters> counters_;
+  std::vector<HealthStatus> bod_status_;
+  std::vector<std::optional<BodEstimate>> last_bod_;
+  int steps_without_update_ = 0;
+  int consecutive_large_gnss_ = 0;
+  int rejected_total_ = 0;
+};
+
+}  // namespace artms::sod

@@ -1,0 +1,64 @@
+#include "artms/sod/apriori.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "artms/astro/elements.hpp"
+
+namespace artms::sod {
+
+void AprioriErrorModel::validate() const {
+  const auto check = [](double v, const char* name) {
+    if (!std::isfinite(v) || v < 0.0)
+      throw std::invalid_argument(std::string("AprioriErrorModel.") + name +
+                                  ": must be finite and >= 0");
+  };
+  check(sigma_a_da0_m, "sigma_a_da0_m");
+  check(sigma_a_dlambda0_m, "sigma_a_dlambda0_m");
+  check(sigma_a_de0_m, "sigma_a_de0_m");
+  check(sigma_a_di0_m, "sigma_a_di0_m");
+  check(sigma_a_da_rate_mpd, "sigma_a_da_rate_mpd");
+  check(sigma_a_de_rate_mpd, "sigma_a_de_rate_mpd");
+  check(sigma_a_di_rate_mpd, "sigma_a_di_rate_mpd");
+}
+
+AprioriRoe apriori_from_age(double age_days, double a_observer_m, const AprioriErrorModel& model) {
+  model.validate();
+  if (!std::isfinite(age_days) || age_days < 0.0)
+    throw std::invalid_argument("apriori_from_age: age_days must be finite and >= 0");
+  if (!std::isfinite(a_observer_m) || a_observer_m <= 0.0)
+    throw std::invalid_argument("apriori_from_age: a_observer_m must be positive");
+  const double t = age_days * astro::kSecondsPerDay;
+  const double n = astro::mean_motion_radps(a_observer_m);
+  const double s_da0 = model.sigma_a_da0_m;
+  const double s_dadot = model.sigma_a_da_rate_mpd / astro::kSecondsPerDay;  // m/s
+  // [a da, a dlambda] = A [a da0, a dadot] + [0, a dlambda0]
+  const double k0 = -1.5 * n * t, k1 = -0.75 * n * t * t;
+  AprioriRoe out;
+  astro::Mat6& P = out.P_a_roe_m2;
+  P(0, 0) = s_da0 * s_da0 + s_dadot * s_dadot * t * t;
+  P(1, 1) = model.sigma_a_dlambda0_m * model.sigma_a_dlambda0_m + k0 * k0 * s_da0 * s_da0 +
+            k1 * k1 * s_dadot * s_dadot;
+  P(0, 1) = P(1, 0) = k0 * s_da0 * s_da0 + k1 * t * s_dadot * s_dadot;
+  const double de_days = model.sigma_a_de_rate_mpd * age_days;
+  const double di_days = model.sigma_a_di_rate_mpd * age_days;
+  P(2, 2) = P(3, 3) = model.sigma_a_de0_m * model.sigma_a_de0_m + de_days * de_days;
+  P(4, 4) = P(5, 5) = model.sigma_a_di0_m * model.sigma_a_di0_m + di_days * di_days;
+  out.sigma_a_roe_m = P.diagonal().cwiseSqrt();
+  out.P_roe = P / (a_observer_m * a_observer_m);
+  return out;
+}
+
+astro::Vec6 draw_apriori_error_a_roe_m(const AprioriRoe& apriori, std::mt19937_64& rng) {
+  // Symmetric square root: valid also when a sigma is zero (P semi-definite).
+  const Eigen::SelfAdjointEigenSolver<astro::Mat6> es(apriori.P_a_roe_m2);
+  const astro::Vec6 sd = es.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  std::normal_distribution<double> g(0.0, 1.0);
+  astro::Vec6 w;
+  for (int i = 0; i < 6; ++i) w[i] = g(rng);
+  return es.eigenvectors() * sd.asDiagonal() * w;
+}
+
+}  // namespace artms::sod

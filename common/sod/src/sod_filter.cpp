@@ -1,0 +1,630 @@
+#include "artms/sod/sod_filter.hpp"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <sstream>
+#include <stdexcept>
+
+namespace artms::sod {
+
+namespace {
+
+using astro::QnsElements;
+using astro::Roe;
+
+void require(bool ok, const std::string& field, const std::string& expected) {
+  if (!ok) throw std::invalid_argument("SodOptions." + field + ": " + expected);
+}
+
+bool is_finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
+
+// Scaled unscented transform weights (Wan & van der Merwe 2000, eq. 15).
+void ukf_weights(int n, const SodOptions& o, double& gamma, VectorXd& wm, VectorXd& wc) {
+  const double lambda = o.ukf_alpha * o.ukf_alpha * (n + o.ukf_kappa) - n;
+  gamma = std::sqrt(n + lambda);
+  wm = VectorXd::Constant(2 * n + 1, 0.5 / (n + lambda));
+  wc = wm;
+  wm[0] = lambda / (n + lambda);
+  wc[0] = wm[0] + (1.0 - o.ukf_alpha * o.ukf_alpha + o.ukf_beta);
+}
+
+// Sigma point j (j >= 1) is built from column (j - 1) % n of chol(P).
+int column_of(int j, int n) { return (j - 1) % n; }
+
+bool symmetric_positive_definite(const MatrixXd& P) {
+  if (!P.allFinite()) return false;
+  if ((P - P.transpose()).cwiseAbs().maxCoeff() >
+      1e-9 * std::max(1e-300, P.diagonal().cwiseAbs().maxCoeff()))
+    return false;
+  const Eigen::LLT<MatrixXd> llt(P);
+  return llt.info() == Eigen::Success;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- options
+
+void SodOptions::validate() const {
+  require(std::isfinite(propagator.step_s) && propagator.step_s > 0.0, "propagator.step_s",
+          "must be positive and finite");
+  require(std::isfinite(ukf_alpha) && ukf_alpha > 0.0 && ukf_alpha <= 1.0, "ukf_alpha",
+          "must be in (0, 1]");
+  require(std::isfinite(ukf_beta) && ukf_beta >= 0.0, "ukf_beta", "must be >= 0");
+  require(std::isfinite(ukf_kappa), "ukf_kappa", "must be finite");
+  for (int i = 0; i < 6; ++i) {
+    require(std::isfinite(q_observer[i]) && q_observer[i] >= 0.0,
+            "q_observer[" + std::to_string(i) + "]", "must be finite and >= 0");
+    require(std::isfinite(q_target_a_roe_m2ps[i]) && q_target_a_roe_m2ps[i] >= 0.0,
+            "q_target_a_roe_m2ps[" + std::to_string(i) + "]", "must be finite and >= 0");
+  }
+  require(std::isfinite(q_aux) && q_aux >= 0.0, "q_aux", "must be finite and >= 0");
+  require(adaptive.forgetting > 0.0 && adaptive.forgetting < 1.0, "adaptive.forgetting",
+          "must be in (0, 1)");
+  require(std::isfinite(adaptive.floor_factor) && adaptive.floor_factor >= 0.0 &&
+              adaptive.floor_factor <= 1.0,
+          "adaptive.floor_factor", "must be in [0, 1]");
+  require(std::isfinite(adaptive.ceiling_factor) && adaptive.ceiling_factor >= 1.0,
+          "adaptive.ceiling_factor", "must be finite and >= 1");
+  require(bearing_gate_mahalanobis > 0.0, "bearing_gate_mahalanobis", "must be > 0 (inf disables)");
+  require(gnss_gate_mahalanobis > 0.0, "gnss_gate_mahalanobis", "must be > 0 (inf disables)");
+  require(health.bod_max_mahalanobis > 0.0, "health.bod_max_mahalanobis", "must be > 0");
+  require(health.bod_max_relative > 0.0, "health.bod_max_relative", "must be > 0");
+  require(health.max_steps_without_update >= 1, "health.max_steps_without_update", "must be >= 1");
+  require(health.max_large_residuals >= 1, "health.max_large_residuals", "must be >= 1");
+  require(health.large_residual_mahalanobis > 0.0, "health.large_residual_mahalanobis",
+          "must be > 0");
+  require(is_finite_positive(health.min_a_m) && health.max_a_m > health.min_a_m,
+          "health.min_a_m", "must be positive and below health.max_a_m");
+  require(health.max_e > 0.0 && health.max_e < 1.0, "health.max_e", "must be in (0, 1)");
+  require(health.max_a_roe_m > 0.0, "health.max_a_roe_m", "must be > 0");
+}
+
+BearingMeasurement bearing_measurement_from_unit_eci(TimeTT t, int target, const Vec3& los_eci,
+                                                     double sigma_rad, const Mat3& R_v_from_eci) {
+  BearingMeasurement m;
+  m.t = t;
+  m.target = target;
+  m.angles = astro::bearing_from_los(R_v_from_eci * los_eci);
+  m.sigma_az_rad = m.sigma_el_rad = sigma_rad;
+  m.R_v_from_eci = R_v_from_eci;
+  return m;
+}
+
+std::string UpdateSummary::brief_report() const {
+  std::ostringstream s;
+  s << (target < 0 ? std::string("gnss") : "bearing target " + std::to_string(target)) << ": "
+    << (usable ? "accepted" : (gated ? "gated" : "unusable"));
+  if (std::isfinite(mahalanobis)) s << ", Mahalanobis " << mahalanobis << ", NIS " << nis;
+  if (!why.empty()) s << " (" << why << ")";
+  return s.str();
+}
+
+std::string_view to_string(HealthCondition c) {
+  switch (c) {
+    case HealthCondition::kHealthy: return "healthy";
+    case HealthCondition::kBodDisagreement: return "bod_disagreement";
+    case HealthCondition::kNoMeasurementUpdate: return "no_measurement_update";
+    case HealthCondition::kLargeResiduals: return "large_residuals";
+    case HealthCondition::kOutOfRange: return "out_of_range";
+  }
+  return "unknown";
+}
+
+bool HealthReport::healthy() const {
+  if (!filter.healthy()) return false;
+  for (const auto& t : targets)
+    if (!t.healthy()) return false;
+  return true;
+}
+
+// ---------------------------------------------------------------- filter
+
+struct SodFilter::MeasurementModel {
+  std::function<VectorXd(const VectorXd&)> h;
+  // Sigma points from chol(P) columns >= cutoff leave h unchanged.
+  int cutoff = 0;
+  // Components of z that are angles (residuals wrapped).
+  std::vector<bool> angle;
+};
+
+SodFilter::SodFilter(const dynamics::ForceModel& forces,
+                     const dynamics::SpacecraftProperties& observer_sc,
+                     const dynamics::SpacecraftProperties& target_sc, StateLayout layout,
+                     SodOptions options)
+    : observer_prop_(forces, observer_sc, options.propagator),
+      target_prop_(forces, target_sc, options.propagator),
+      gm_m3ps2_(forces.gm_m3ps2()),
+      layout_(layout),
+      options_(std::move(options)) {
+  options_.validate();
+  if (layout_.n_targets < 1) throw std::invalid_argument("StateLayout.n_targets: must be >= 1");
+  if (layout_.n_aux < 0) throw std::invalid_argument("StateLayout.n_aux: must be >= 0");
+  const int n = layout_.size();
+  require(n + options_.ukf_kappa > 0.0, "ukf_kappa", "n + ukf_kappa must be > 0 (n = state size)");
+  ukf_weights(n, options_, gamma_, wm_, wc_);
+  counters_.assign(layout_.n_targets, {});
+  bod_status_.assign(layout_.n_targets, {});
+  last_bod_.assign(layout_.n_targets, std::nullopt);
+}
+
+VectorXd SodFilter::make_state(const QnsElements& observer, const std::vector<Roe>& roe,
+                               const VectorXd& aux) const {
+  if (static_cast<int>(roe.size()) != layout_.n_targets)
+    throw std::invalid_argument("SodFilter::make_state: need one ROE per target");
+  if (aux.size() != layout_.n_aux)
+    throw std::invalid_argument("SodFilter::make_state: aux has the wrong size");
+  VectorXd x(layout_.size());
+  x.segment<6>(0) = observer.as_vector();
+  for (int k = 0; k < layout_.n_targets; ++k) x.segment<6>(layout_.target_offset(k)) = roe[k].as_vector();
+  if (layout_.n_aux > 0) x.tail(layout_.n_aux) = aux;
+  return x;
+}
+
+void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
+  const int n = layout_.size();
+  if (x.size() != n || P.rows() != n || P.cols() != n)
+    throw std::invalid_argument("SodFilter::initialize: x and P must have layout().size() = " +
+                                std::to_string(n) + " rows");
+  if (!x.allFinite()) throw std::invalid_argument("SodFilter::initialize: x is not finite");
+  if (!symmetric_positive_definite(P))
+    throw std::invalid_argument("SodFilter::initialize: P is not symmetric positive definite");
+  if (!(x[StateLayout::kA] > 0.0)) throw std::invalid_argument("SodFilter::initialize: a <= 0");
+  t_ = t;
+  x_ = x;
+  wrap_state(x_);
+  P_ = 0.5 * (P + P.transpose());
+  // Nominal process noise in state units (targets through the observer's a).
+  q_nominal_.resize(n);
+  q_nominal_.head<6>() = options_.q_observer;
+  const double a2 = x_[StateLayout::kA] * x_[StateLayout::kA];
+  for (int k = 0; k < layout_.n_targets; ++k)
+    q_nominal_.segment<6>(layout_.target_offset(k)) = options_.q_target_a_roe_m2ps / a2;
+  if (layout_.n_aux > 0) q_nominal_.tail(layout_.n_aux).setConstant(options_.q_aux);
+  q_ = q_nominal_;
+  pending_dx2_ = VectorXd::Zero(n);
+  pending_ = false;
+  last_dt_s_ = 0.0;
+  counters_.assign(layout_.n_targets, {});
+  bod_status_.assign(layout_.n_targets, {});
+  last_bod_.assign(layout_.n_targets, std::nullopt);
+  steps_without_update_ = 0;
+  consecutive_large_gnss_ = 0;
+  rejected_total_ = 0;
+  initialized_ = true;
+}
+
+VectorXd SodFilter::state_difference(const VectorXd& a, const VectorXd& b) const {
+  VectorXd d = a - b;
+  for (int i = 0; i < d.size(); ++i)
+    if (layout_.is_angle(i)) d[i] = astro::wrap_pi(d[i]);
+  return d;
+}
+
+void SodFilter::wrap_state(VectorXd& x) const {
+  x[StateLayout::kU] = astro::wrap_two_pi(x[StateLayout::kU]);
+  x[StateLayout::kRaan] = astro::wrap_pi(x[StateLayout::kRaan]);
+  for (int k = 0; k < layout_.n_targets; ++k) {
+    const int i = layout_.target_offset(k) + StateLayout::kDlambda;
+    x[i] = astro::wrap_pi(x[i]);
+  }
+}
+
+bool SodFilter::sigma_points(MatrixXd& X) const {
+  const int n = layout_.size();
+  const Eigen::LLT<MatrixXd> llt(P_);
+  if (llt.info() != Eigen::Success) return false;
+  const MatrixXd L = llt.matrixL();
+  if (!L.allFinite()) return false;
+  X.resize(n, 2 * n + 1);
+  X.col(0) = x_;
+  for (int c = 0; c < n; ++c) {
+    X.col(1 + c) = x_ + gamma_ * L.col(c);
+    X.col(1 + n + c) = x_ - gamma_ * L.col(c);
+  }
+  return true;
+}
+
+void SodFilter::adapt_process_noise() {
+  if (!options_.adaptive.enabled || !pending_ || !(last_dt_s_ > 0.0)) {
+    pending_dx2_.setZero();
+    pending_ = false;
+    return;
+  }
+  // docs/sod.md, "Adaptive process noise".
+  const double alpha = options_.adaptive.forgetting;
+  for (int i = 0; i < q_.size(); ++i) {
+    const double q_hat = q_[i] + pending_dx2_[i] / last_dt_s_;
+    const double q = alpha * q_[i] + (1.0 - alpha) * q_hat;
+    q_[i] = std::clamp(q, options_.adaptive.floor_factor * q_nominal_[i],
+                       options_.adaptive.ceiling_factor * q_nominal_[i]);
+  }
+  pending_dx2_.setZero();
+  pending_ = false;
+}
+
+TimeUpdateSummary SodFilter::time_update(TimeTT t) {
+  TimeUpdateSummary s;
+  if (!initialized_) {
+    s.why = "filter not initialised";
+    return s;
+  }
+  s.dt_s = astro::seconds_between(t_, t);
+  if (s.dt_s == 0.0) {
+    s.usable = true;
+    return s;
+  }
+  adapt_process_noise();
+  const int n = layout_.size(), m = 2 * n + 1;
+  MatrixXd X;
+  if (!sigma_points(X)) {
+    s.why = "covariance not positive definite before the time update";
+    return s;
+  }
+  MatrixXd Y = X;  // auxiliary states stay constant
+  try {
+    // Observer: only sigma points from columns 0..5 move it.
+    std::vector<QnsElements> obs0(m), obs1(m);
+    for (int j = 0; j < m; ++j) {
+      obs0[j] = QnsElements::from_vector(X.col(j).head<6>());
+      if (j == 0 || column_of(j, n) < 6) {
+        obs1[j] = observer_prop_.propagate(obs0[j], t_, t);
+        ++s.propagations;
+      } else {
+        obs1[j] = obs1[0];
+      }
+      Y.col(j).head<6>() = obs1[j].as_vector();
+    }
+    // Target k: only columns before the end of its block move it.
+    for (int k = 0; k < layout_.n_targets; ++k) {
+      const int off = layout_.target_offset(k), end = off + StateLayout::kBlock;
+      QnsElements tgt_mean1;
+      for (int j = 0; j < m; ++j) {
+        QnsElements tgt1;
+        if (j == 0 || column_of(j, n) < end) {
+          const QnsElements tgt0 =
+              astro::qns_from_roe(obs0[j], Roe::from_vector(X.col(j).segment<6>(off)));
+          tgt1 = target_prop_.propagate(tgt0, t_, t);
+          ++s.propagations;
+          if (j == 0) tgt_mean1 = tgt1;
+        } else {
+          tgt1 = tgt_mean1;
+        }
+        Y.col(j).segment<6>(off) = astro::roe_from_qns(obs1[j], tgt1).as_vector();
+      }
+    }
+  } catch (const std::exception& e) {
+    s.why = std::string("propagation of a sigma point failed: ") + e.what();
+    return s;
+  }
+  // Weighted mean about the central point (angles wrapped), then covariance.
+  VectorXd mean = Y.col(0);
+  for (int j = 1; j < m; ++j) mean += wm_[j] * state_difference(Y.col(j), Y.col(0));
+  MatrixXd P = MatrixXd::Zero(n, n);
+  for (int j = 0; j < m; ++j) {
+    const VectorXd d = state_difference(Y.col(j), mean);
+    P.noalias() += wc_[j] * d * d.transpose();
+  }
+  P.diagonal() += q_ * std::abs(s.dt_s);
+  if (!store(mean, P)) {
+    s.why = "predicted covariance not positive definite (or state not finite)";
+    return s;
+  }
+  t_ = t;
+  last_dt_s_ = std::abs(s.dt_s);
+  ++steps_without_update_;
+  for (auto& c : counters_) ++c.steps_without_update;
+  s.usable = true;
+  return s;
+}
+
+bool SodFilter::store(VectorXd x, MatrixXd P) {
+  P = 0.5 * (P + P.transpose());
+  if (!x.allFinite() || !symmetric_positive_definite(P)) return false;
+  wrap_state(x);
+  x_ = std::move(x);
+  P_ = std::move(P);
+  return true;
+}
+
+bool SodFilter::advance_to(TimeTT t, UpdateSummary& s) {
+  if (t == t_) return true;
+  const TimeUpdateSummary tu = time_update(t);
+  if (!tu.usable) s.why = "time update to the measurement epoch failed: " + tu.why;
+  return tu.usable;
+}
+
+UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const VectorXd& z,
+                                          const VectorXd& r_diag, double gate, int target) {
+  UpdateSummary s;
+  s.target = target;
+  const int n = layout_.size(), m = 2 * n + 1, nz = static_cast<int>(z.size());
+  const auto wrap_z = [&](VectorXd d) {
+    for (int i = 0; i < nz; ++i)
+      if (model.angle[i]) d[i] = astro::wrap_pi(d[i]);
+    return d;
+  };
+  MatrixXd X;
+  if (!sigma_points(X)) {
+    s.why = "covariance not positive definite before the measurement update";
+    return s;
+  }
+  MatrixXd Z(nz, m);
+  try {
+    Z.col(0) = model.h(X.col(0));
+    for (int j = 1; j < m; ++j)
+      Z.col(j) = column_of(j, n) < model.cutoff ? model.h(X.col(j)) : VectorXd(Z.col(0));
+  } catch (const std::exception& e) {
+    s.why = std::string("measurement model failed at a sigma point: ") + e.what();
+    return s;
+  }
+  VectorXd z_mean = Z.col(0);
+  for (int j = 1; j < m; ++j) z_mean += wm_[j] * wrap_z(Z.col(j) - Z.col(0));
+  MatrixXd S = r_diag.asDiagonal();
+  MatrixXd Pxz = MatrixXd::Zero(n, nz);
+  for (int j = 0; j < m; ++j) {
+    const VectorXd dz = wrap_z(Z.col(j) - z_mean);
+    const VectorXd dx = state_difference(X.col(j), x_);
+    S.noalias() += wc_[j] * dz * dz.transpose();
+    Pxz.noalias() += wc_[j] * dx * dz.transpose();
+  }
+  S = 0.5 * (S + S.transpose());
+  s.prefit_residual = wrap_z(z - z_mean);
+  const Eigen::LLT<MatrixXd> llt_s(S);
+  if (llt_s.info() != Eigen::Success || !S.allFinite()) {
+    s.why = "innovation covariance not positive definite";
+    return s;
+  }
+  s.nis = s.prefit_residual.dot(llt_s.solve(s.prefit_residual));
+  s.mahalanobis = std::sqrt(s.nis);
+
+  // Health check (3): successive large pre-fit residuals (gated ones included).
+  int& large = target >= 0 ? counters_[target].consecutive_large_residuals : consecutive_large_gnss_;
+  large = s.mahalanobis > options_.health.large_residual_mahalanobis ? large + 1 : 0;
+
+  if (s.mahalanobis > gate) {
+    s.gated = true;
+    s.why = "innovation Mahalanobis distance above the gate";
+    ++rejected_total_;
+    if (target >= 0) ++counters_[target].rejected;
+    return s;
+  }
+  const MatrixXd K = llt_s.solve(Pxz.transpose()).transpose();  // Pxz S^-1
+  const VectorXd dx = K * s.prefit_residual;
+  if (!store(x_ + dx, P_ - K * S * K.transpose())) {
+    s.why = "posterior covariance not positive definite (or state not finite)";
+    return s;
+  }
+  try {
+    s.postfit_residual = wrap_z(z - model.h(x_));
+  } catch (const std::exception&) {
+    s.postfit_residual = VectorXd::Constant(nz, kNaN);
+  }
+  // Covariance matching (docs/sod.md): dx dx^T - K S K^T, diagonal.
+  pending_dx2_ += dx.cwiseAbs2() - (K * S * K.transpose()).diagonal();
+  pending_ = true;
+  steps_without_update_ = 0;
+  if (target >= 0) {
+    counters_[target].steps_without_update = 0;
+    ++counters_[target].accepted;
+  }
+  s.usable = true;
+  return s;
+}
+
+UpdateSummary SodFilter::update_bearing(const BearingMeasurement& meas) {
+  UpdateSummary s;
+  s.target = meas.target;
+  if (meas.target < 0 || meas.target >= layout_.n_targets) {
+    s.why = "target index out of range";
+    return s;
+  }
+  if (!is_finite_positive(meas.sigma_az_rad) || !is_finite_positive(meas.sigma_el_rad) ||
+      !meas.R_v_from_eci.allFinite() || !std::isfinite(meas.angles.az_rad) ||
+      !std::isfinite(meas.angles.el_rad)) {
+    s.why = "measurement angles, sigmas or attitude not finite/positive";
+    return s;
+  }
+  if (!advance_to(meas.t, s)) return s;
+  const int off = layout_.target_offset(meas.target);
+  const double gm = gm_m3ps2_;
+  const Mat3 R = meas.R_v_from_eci;
+  MeasurementModel model;
+  model.cutoff = off + StateLayout::kBlock;
+  model.angle = {true, true};
+  model.h = [off, gm, R](const VectorXd& x) -> VectorXd {
+    const QnsElements obs = QnsElements::from_vector(x.head<6>());
+    const QnsElements tgt = astro::qns_from_roe(obs, Roe::from_vector(x.segment<6>(off)));
+    const astro::Bearing b = astro::bearing_from_eci(astro::cartesian_from_qns(obs, gm).r_m,
+                                                     astro::cartesian_from_qns(tgt, gm).r_m, R);
+    return b.as_vector();
+  };
+  const Eigen::Vector2d r(meas.sigma_az_rad * meas.sigma_az_rad,
+                          meas.sigma_el_rad * meas.sigma_el_rad);
+  return unscented_update(model, meas.angles.as_vector(), r, options_.bearing_gate_mahalanobis,
+                          meas.target);
+}
+
+UpdateSummary SodFilter::update_gnss(const GnssMeasurement& meas) {
+  UpdateSummary s;
+  if (!is_finite_positive(meas.sigma_r_m) || !is_finite_positive(meas.sigma_v_mps) ||
+      !meas.x_eci.stacked().allFinite()) {
+    s.why = "GNSS state or sigmas not finite/positive";
+    return s;
+  }
+  if (!advance_to(meas.t, s)) return s;
+  const double gm = gm_m3ps2_;
+  MeasurementModel model;
+  model.cutoff = StateLayout::kBlock;
+  model.angle.assign(6, false);
+  model.h = [gm](const VectorXd& x) -> VectorXd {
+    return astro::cartesian_from_qns(QnsElements::from_vector(x.head<6>()), gm).stacked();
+  };
+  VectorXd r(6);
+  r << Vec3::Constant(meas.sigma_r_m * meas.sigma_r_m),
+      Vec3::Constant(meas.sigma_v_mps * meas.sigma_v_mps);
+  return unscented_update(model, meas.x_eci.stacked(), r, options_.gnss_gate_mahalanobis, -1);
+}
+
+// ---------------------------------------------------------------- health
+
+BodComparison SodFilter::check_bod(int target, const BodEstimate& bod) {
+  BodComparison c;
+  if (target < 0 || target >= layout_.n_targets) {
+    c.why = "target index out of range";
+    return c;
+  }
+  if (std::abs(astro::seconds_between(t_, bod.t)) > 1e-3) {
+    c.why = "BOD epoch differs from the filter epoch; time_update() to it first";
+    return c;
+  }
+  if (!bod.roe.allFinite() || !symmetric_positive_definite(bod.P_roe)) {
+    c.why = "BOD estimate not finite or its covariance not positive definite";
+    return c;
+  }
+  const int off = layout_.target_offset(target);
+  Vec6 d = x_.segment<6>(off) - bod.roe;
+  d[StateLayout::kDlambda] = astro::wrap_pi(d[StateLayout::kDlambda]);
+  const Mat6 S = P_.block<6, 6>(off, off) + bod.P_roe;
+  const Eigen::LLT<Mat6> llt(S);
+  if (llt.info() != Eigen::Success) {
+    c.why = "P_sod + P_bod not positive definite";
+    return c;
+  }
+  c.mahalanobis = std::sqrt(d.dot(llt.solve(d)));
+  c.relative_distance = d.norm() / std::max(bod.roe.norm(), 1e-12);
+  c.disagrees = c.mahalanobis > options_.health.bod_max_mahalanobis ||
+                c.relative_distance > options_.health.bod_max_relative;
+  c.usable = true;
+  last_bod_[target] = bod;
+  HealthStatus& st = bod_status_[target];
+  if (c.disagrees) {
+    std::ostringstream why;
+    why << "SOD differs from BOD: Mahalanobis " << c.mahalanobis << " (max "
+        << options_.health.bod_max_mahalanobis << "), relative " << c.relative_distance << " (max "
+        << options_.health.bod_max_relative << ")";
+    st = {HealthCondition::kBodDisagreement, why.str()};
+  } else {
+    st = {};
+  }
+  return c;
+}
+
+HealthReport SodFilter::health() const {
+  HealthReport r;
+  r.targets.assign(layout_.n_targets, {});
+  const HealthOptions& h = options_.health;
+  if (!initialized_) {
+    r.filter = {HealthCondition::kOutOfRange, "filter not initialised"};
+    return r;
+  }
+  // (4) for the whole filter: finite, positive definite, observer in range.
+  const double a = x_[StateLayout::kA];
+  const double e = std::hypot(x_[StateLayout::kEx], x_[StateLayout::kEy]);
+  if (!x_.allFinite() || !P_.allFinite()) {
+    r.filter = {HealthCondition::kOutOfRange, "state or covariance not finite"};
+  } else if (Eigen::LLT<MatrixXd>(P_).info() != Eigen::Success) {
+    r.filter = {HealthCondition::kOutOfRange, "covariance not positive definite"};
+  } else if (a < h.min_a_m || a > h.max_a_m) {
+    r.filter = {HealthCondition::kOutOfRange,
+                "observer a = " + std::to_string(a) + " m outside [min_a_m, max_a_m]"};
+  } else if (e >= h.max_e) {
+    r.filter = {HealthCondition::kOutOfRange, "observer e = " + std::to_string(e) + " >= max_e"};
+  } else if (steps_without_update_ > h.max_steps_without_update) {
+    // (2) for the filter: no measurement of any kind accepted.
+    r.filter = {HealthCondition::kNoMeasurementUpdate,
+                std::to_string(steps_without_update_) + " steps without a measurement update"};
+  } else if (consecutive_large_gnss_ > h.max_large_residuals) {
+    r.filter = {HealthCondition::kLargeResiduals,
+                std::to_string(consecutive_large_gnss_) + " successive large GNSS residuals"};
+  }
+  for (int k = 0; k < layout_.n_targets; ++k) {
+    const Vec6 a_roe = a * x_.segment<6>(layout_.target_offset(k));
+    const TargetCounters& c = counters_[k];
+    HealthStatus& st = r.targets[k];
+    if (!a_roe.allFinite()) {
+      st = {HealthCondition::kOutOfRange, "ROE not finite"};
+    } else if (a_roe.cwiseAbs().maxCoeff() > h.max_a_roe_m) {
+      st = {HealthCondition::kOutOfRange, "|a*ROE| = " + std::to_string(a_roe.cwiseAbs().maxCoeff()) +
+                                              " m above max_a_roe_m"};
+    } else if (!bod_status_[k].healthy()) {
+      st = bod_status_[k];  // (1)
+    } else if (c.consecutive_large_residuals > h.max_large_residuals) {
+      st = {HealthCondition::kLargeResiduals,
+            std::to_string(c.consecutive_large_residuals) + " successive large bearing residuals"};
+    } else if (c.steps_without_update > h.max_steps_without_update) {
+      st = {HealthCondition::kNoMeasurementUpdate,
+            std::to_string(c.steps_without_update) + " steps without a bearing update"};
+    }
+  }
+  return r;
+}
+
+void SodFilter::reinitialize_target(int target, const Vec6& roe, const Mat6& P_roe) {
+  if (target < 0 || target >= layout_.n_targets)
+    throw std::invalid_argument("SodFilter::reinitialize_target: target index out of range");
+  if (!roe.allFinite() || !symmetric_positive_definite(P_roe))
+    throw std::invalid_argument(
+        "SodFilter::reinitialize_target: ROE not finite or P_roe not symmetric positive definite");
+  const int off = layout_.target_offset(target);
+  x_.segment<6>(off) = roe;
+  wrap_state(x_);
+  P_.middleRows<6>(off).setZero();
+  P_.middleCols<6>(off).setZero();
+  P_.block<6, 6>(off, off) = 0.5 * (P_roe + P_roe.transpose());
+  counters_[target] = {};
+  bod_status_[target] = {};
+}
+
+bool SodFilter::reinitialize_target_from_bod(int target) {
+  if (target < 0 || target >= layout_.n_targets || !last_bod_[target]) return false;
+  reinitialize_target(target, last_bod_[target]->roe, last_bod_[target]->P_roe);
+  return true;
+}
+
+void SodFilter::reinitialize_observer(const QnsElements& observer, const Mat6& P) {
+  if (!observer.as_vector().allFinite() || !symmetric_positive_definite(P))
+    throw std::invalid_argument(
+        "SodFilter::reinitialize_observer: elements not finite or P not symmetric positive definite");
+  x_.head<6>() = observer.as_vector();
+  wrap_state(x_);
+  P_.topRows<6>().setZero();
+  P_.leftCols<6>().setZero();
+  P_.topLeftCorner<6, 6>() = 0.5 * (P + P.transpose());
+  steps_without_update_ = 0;
+  consecutive_large_gnss_ = 0;
+}
+
+// ---------------------------------------------------------------- accessors
+
+double SodFilter::nees(const VectorXd& x_true) const {
+  if (x_true.size() != x_.size()) throw std::invalid_argument("SodFilter::nees: wrong state size");
+  const Eigen::LLT<MatrixXd> llt(P_);
+  if (llt.info() != Eigen::Success) return kNaN;
+  const VectorXd d = state_difference(x_, x_true);
+  return d.dot(llt.solve(d));
+}
+
+QnsElements SodFilter::observer() const { return QnsElements::from_vector(x_.head<6>()); }
+
+Roe SodFilter::roe(int target) const {
+  return Roe::from_vector(x_.segment<6>(layout_.target_offset(target)));
+}
+
+Vec6 SodFilter::a_roe_m(int target) const {
+  return x_[StateLayout::kA] * x_.segment<6>(layout_.target_offset(target));
+}
+
+Vec6 SodFilter::a_roe_sigma_m(int target) const {
+  const int off = layout_.target_offset(target);
+  return x_[StateLayout::kA] * P_.diagonal().segment<6>(off).cwiseSqrt();
+}
+
+const TargetCounters& SodFilter::counters(int target) const {
+  if (target < 0 || target >= layout_.n_targets)
+    throw std::invalid_argument("SodFilter::counters: target index out of range");
+  return counters_[target];
+}
+
+}  // namespace artms::sod

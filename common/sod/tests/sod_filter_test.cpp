@@ -1,0 +1,433 @@
+// SOD unit tests: options, gating, the four health checks, re-initialisation,
+// failure statuses, and numerical checks of the unscented updates against
+// linearised (central-difference) propagation and measurement maps.
+#include <gtest/gtest.h>
+
+#include "artms/sod/apriori.hpp"
+#include "artms/sod/sod_filter.hpp"
+#include "artms/testing/testing.hpp"
+#include "sod_scenario.hpp"
+
+namespace artms::sod {
+namespace {
+
+using artms::testing::IsSymmetricPositiveDefinite;
+using testing::Truth;
+
+const TimeTT kT0 = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
+
+// A filter at the truth (2 targets) with a small diagonal covariance.
+struct Fixture {
+  Truth truth;
+  SodFilter filter;
+  explicit Fixture(SodOptions o = {}, double dlambda_frac = 0.01, double other_m = 20.0)
+      : truth(kT0, testing::observer_at_start(),
+              {testing::starling_a_roe_m()[0], testing::starling_a_roe_m()[1]}),
+        filter(testing::j2_forces(), dynamics::SpacecraftProperties{},
+               dynamics::SpacecraftProperties{}, StateLayout{2, 0}, std::move(o)) {
+    testing::InitialGuess g = testing::shifted_initial_guess(
+        testing::observer_at_start(),
+        {testing::starling_a_roe_m()[0], testing::starling_a_roe_m()[1]}, dlambda_frac, other_m);
+    filter.initialize(kT0, truth.state(), g.P);
+  }
+};
+
+void expect_invalid(const std::function<void(SodOptions&)>& edit, const std::string& field) {
+  SodOptions o;
+  edit(o);
+  try {
+    o.validate();
+    ADD_FAILURE() << "no exception for " << field;
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+  }
+}
+
+TEST(SodOptions, DefaultsAreValidAndErrorsNameTheField) {
+  EXPECT_NO_THROW(SodOptions{}.validate());
+  expect_invalid([](SodOptions& o) { o.ukf_alpha = 0.0; }, "ukf_alpha");
+  expect_invalid([](SodOptions& o) { o.ukf_beta = -1.0; }, "ukf_beta");
+  expect_invalid([](SodOptions& o) { o.propagator.step_s = 0.0; }, "propagator.step_s");
+  expect_invalid([](SodOptions& o) { o.q_observer[3] = -1.0; }, "q_observer[3]");
+  expect_invalid([](SodOptions& o) { o.q_target_a_roe_m2ps[1] = kNaN; }, "q_target_a_roe_m2ps[1]");
+  expect_invalid([](SodOptions& o) { o.adaptive.forgetting = 1.0; }, "adaptive.forgetting");
+  expect_invalid([](SodOptions& o) { o.adaptive.ceiling_factor = 0.5; }, "adaptive.ceiling_factor");
+  expect_invalid([](SodOptions& o) { o.bearing_gate_mahalanobis = 0.0; }, "bearing_gate_mahalanobis");
+  expect_invalid([](SodOptions& o) { o.health.max_steps_without_update = 0; },
+                 "health.max_steps_without_update");
+  expect_invalid([](SodOptions& o) { o.health.max_a_m = 1.0; }, "health.min_a_m");
+  EXPECT_THROW(SodFilter(testing::j2_forces(), {}, {}, StateLayout{0, 0}), std::invalid_argument);
+  AprioriErrorModel m;
+  m.sigma_a_da0_m = -1.0;
+  try {
+    m.validate();
+    ADD_FAILURE();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("sigma_a_da0_m"), std::string::npos);
+  }
+}
+
+TEST(SodFilter, InitializeRejectsBadInput) {
+  Fixture f;
+  const VectorXd x = f.truth.state();
+  MatrixXd P = f.filter.covariance();
+  EXPECT_THROW(f.filter.initialize(kT0, x.head(12), P), std::invalid_argument);
+  P(0, 0) = -1.0;
+  EXPECT_THROW(f.filter.initialize(kT0, x, P), std::invalid_argument);
+}
+
+TEST(SodLayout, IndicesAndAngles) {
+  const StateLayout l{3, 2};
+  EXPECT_EQ(l.size(), 6 + 18 + 2);
+  EXPECT_EQ(l.target_offset(2), 18);
+  EXPECT_EQ(l.aux_offset(), 24);
+  EXPECT_TRUE(l.is_angle(StateLayout::kU));
+  EXPECT_TRUE(l.is_angle(StateLayout::kRaan));
+  EXPECT_FALSE(l.is_angle(StateLayout::kA));
+  EXPECT_TRUE(l.is_angle(l.target_offset(1) + StateLayout::kDlambda));
+  EXPECT_FALSE(l.is_angle(l.target_offset(1) + StateLayout::kDa));
+  EXPECT_FALSE(l.is_angle(l.aux_offset() + 1));
+}
+
+// An appended auxiliary state is held constant and random-walks with q_aux.
+TEST(SodLayout, AuxiliaryStateIsConstantWithRandomWalk) {
+  SodOptions o;
+  o.q_aux = 1e-4;
+  o.adaptive.enabled = false;
+  SodFilter f(testing::j2_forces(), {}, {}, StateLayout{1, 1}, o);
+  const astro::QnsElements obs = testing::observer_at_start();
+  VectorXd aux(1);
+  aux << 0.25;
+  const VectorXd x = f.make_state(obs, {astro::Roe::from_scaled_m(testing::starling_a_roe_m()[0], obs.a_m)}, aux);
+  VectorXd sd = VectorXd::Constant(13, 1e-8);
+  sd[0] = 1.0;
+  sd[12] = 0.01;
+  f.initialize(kT0, x, sd.cwiseAbs2().asDiagonal());
+  ASSERT_TRUE(f.time_update(kT0.plus_seconds(100.0)).usable);
+  const int i = f.layout().aux_offset();
+  EXPECT_NEAR(f.state()[i], 0.25, 1e-12);
+  EXPECT_NEAR(f.covariance()(i, i), 1e-4 + 1e-4 * 100.0, 1e-12);
+}
+
+// Gating: a 0.05 rad outlier is rejected and counted, the state is untouched;
+// the true measurement right after is accepted.
+TEST(SodGating, RejectsOutlierAndCountsIt) {
+  Fixture f;
+  f.truth.advance_to(kT0.plus_seconds(60.0));
+  ASSERT_TRUE(f.filter.time_update(f.truth.t()).usable);
+  const VectorXd x_before = f.filter.state();
+  BearingMeasurement bad = f.truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
+  bad.angles.el_rad += 0.05;
+  const UpdateSummary s = f.filter.update_bearing(bad);
+  EXPECT_FALSE(s.usable);
+  EXPECT_TRUE(s.gated) << s.brief_report();
+  EXPECT_GT(s.mahalanobis, f.filter.options().bearing_gate_mahalanobis);
+  EXPECT_EQ(f.filter.rejected_total(), 1);
+  EXPECT_EQ(f.filter.counters(0).rejected, 1);
+  EXPECT_EQ(f.filter.state(), x_before);
+  const UpdateSummary good = f.filter.update_bearing(f.truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr));
+  EXPECT_TRUE(good.usable) << good.brief_report();
+  EXPECT_FALSE(good.gated);
+  EXPECT_EQ(f.filter.counters(0).accepted, 1);
+  EXPECT_LT(good.nis, 25.0);
+}
+
+// A camera attitude that puts target 1 behind the boresight with elevation
+// pi - 1e-6: the sigma points straddle the +-pi cut of atan2, and a
+// measurement 2e-6 rad further (at -pi + 1e-6) is a small wrapped residual.
+TEST(SodGating, ElevationResidualIsWrappedAcrossPi) {
+  Fixture f;
+  const Vec3 u = (f.truth.target_eci(1).r_m - f.truth.observer_eci().r_m).normalized();
+  const Vec3 p = u.cross(f.truth.observer_eci().r_m).normalized(), q = u.cross(p);
+  const double eps = 1e-6;
+  Mat3 R;
+  R.row(0) = std::sin(eps) * u + std::cos(eps) * p;
+  R.row(1) = -q;
+  R.row(2) = -std::cos(eps) * u + std::sin(eps) * p;
+  ASSERT_NEAR(R.determinant(), 1.0, 1e-12);
+  BearingMeasurement m = f.truth.bearing(1, 20 * astro::kArcsecToRad, 0.0, nullptr);
+  m.R_v_from_eci = R;
+  m.angles = astro::bearing_from_eci(f.truth.observer_eci().r_m, f.truth.target_eci(1).r_m, R);
+  ASSERT_NEAR(m.angles.el_rad, astro::kPi - eps, 1e-9);
+  m.angles.el_rad = astro::wrap_pi(m.angles.el_rad + 2.0 * eps);
+  ASSERT_LT(m.angles.el_rad, -3.0);
+  const UpdateSummary s = f.filter.update_bearing(m);
+  EXPECT_TRUE(s.usable) << s.brief_report();
+  // Not 2 pi; the unscented mean differs from h(x) by second-order terms.
+  EXPECT_NEAR(s.prefit_residual[1], 2.0 * eps, 1e-6);
+  EXPECT_LT(s.mahalanobis, 1.0);
+}
+
+// Health (1): a BOD estimate 10 km away in a*dlambda with a tight covariance.
+TEST(SodHealth, BodDisagreementTriggersAndReinitialisationClearsIt) {
+  Fixture f;
+  const double a = f.truth.observer().a_m;
+  BodEstimate bod{kT0, f.truth.roe(0).as_vector(), Mat6::Identity() * std::pow(50.0 / a, 2)};
+  EXPECT_FALSE(f.filter.check_bod(0, bod).disagrees);
+  EXPECT_TRUE(f.filter.health().healthy());
+  bod.roe[1] += 10e3 / a;
+  const BodComparison c = f.filter.check_bod(0, bod);
+  ASSERT_TRUE(c.usable) << c.why;
+  EXPECT_TRUE(c.disagrees);
+  const HealthReport h = f.filter.health();
+  EXPECT_EQ(h.targets[0].condition, HealthCondition::kBodDisagreement) << h.targets[0].reason;
+  EXPECT_TRUE(h.targets[1].healthy());
+  EXPECT_TRUE(f.filter.reinitialize_target_from_bod(0));
+  EXPECT_TRUE(f.filter.health().healthy());
+  EXPECT_NEAR(f.filter.roe(0).dlambda, bod.roe[1], 1e-15);
+  EXPECT_THAT(MatrixXd(f.filter.covariance()), IsSymmetricPositiveDefinite(1e-20));
+  EXPECT_DOUBLE_EQ(f.filter.covariance()(0, f.filter.layout().target_offset(0) + 1), 0.0);
+  // A BOD estimate at another epoch is not comparable.
+  bod.t = kT0.plus_seconds(10.0);
+  EXPECT_FALSE(f.filter.check_bod(0, bod).usable);
+}
+
+// Health (2): more time updates than allowed without a measurement update.
+TEST(SodHealth, StepsWithoutMeasurementUpdate) {
+  SodOptions o;
+  o.health.max_steps_without_update = 3;
+  Fixture f(o);
+  for (int s = 1; s <= 3; ++s) ASSERT_TRUE(f.filter.time_update(kT0.plus_seconds(60.0 * s)).usable);
+  EXPECT_TRUE(f.filter.health().healthy());
+  f.truth.advance_to(kT0.plus_seconds(240.0));
+  // Target 1 is measured at the fourth step, target 0 is not.
+  ASSERT_TRUE(f.filter.update_bearing(f.truth.bearing(1, 20 * astro::kArcsecToRad, 0.0, nullptr)).usable);
+  const HealthReport h = f.filter.health();
+  EXPECT_EQ(h.targets[0].condition, HealthCondition::kNoMeasurementUpdate) << h.targets[0].reason;
+  EXPECT_TRUE(h.targets[1].healthy());
+  EXPECT_TRUE(h.filter.healthy());
+  ASSERT_TRUE(f.filter.time_update(kT0.plus_seconds(300.0)).usable);
+  for (int s = 6; s <= 8; ++s) ASSERT_TRUE(f.filter.time_update(kT0.plus_seconds(60.0 * s)).usable);
+  EXPECT_EQ(f.filter.health().filter.condition, HealthCondition::kNoMeasurementUpdate);
+}
+
+// Health (3): successive large pre-fit residuals (gated ones count).
+TEST(SodHealth, SuccessiveLargeResiduals) {
+  SodOptions o;
+  o.health.max_large_residuals = 2;
+  Fixture f(o);
+  BearingMeasurement bad = f.truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
+  bad.angles.az_rad += 0.02;
+  for (int i = 0; i < 2; ++i) EXPECT_TRUE(f.filter.update_bearing(bad).gated);
+  EXPECT_TRUE(f.filter.health().healthy());
+  EXPECT_TRUE(f.filter.update_bearing(bad).gated);
+  const HealthReport h = f.filter.health();
+  EXPECT_EQ(h.targets[0].condition, HealthCondition::kLargeResiduals) << h.targets[0].reason;
+  EXPECT_EQ(f.filter.counters(0).consecutive_large_residuals, 3);
+  // A good measurement resets the count.
+  EXPECT_TRUE(f.filter.update_bearing(f.truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr)).usable);
+  EXPECT_TRUE(f.filter.health().healthy());
+}
+
+// Health (4): observer a below R_earth + 100 km, a target beyond max_a_roe_m.
+TEST(SodHealth, StateOutsideValidRange) {
+  Fixture f;
+  Mat6 P = f.filter.covariance().topLeftCorner<6, 6>();
+  astro::QnsElements low = f.truth.observer();
+  low.a_m = astro::kRadiusEarth_m + 50e3;
+  f.filter.reinitialize_observer(low, P);
+  HealthReport h = f.filter.health();
+  EXPECT_EQ(h.filter.condition, HealthCondition::kOutOfRange) << h.filter.reason;
+  Fixture g;
+  Vec6 far = g.truth.roe(1).as_vector();
+  far[1] = 3000e3 / g.truth.observer().a_m;
+  g.filter.reinitialize_target(1, far, Mat6::Identity() * 1e-10);
+  h = g.filter.health();
+  EXPECT_TRUE(h.filter.healthy());
+  EXPECT_EQ(h.targets[1].condition, HealthCondition::kOutOfRange) << h.targets[1].reason;
+}
+
+// A sigma point the dynamics cannot handle (e > 1) gives a status, and the
+// estimate is left as it was.
+TEST(SodFilter, FailedTimeUpdateReturnsStatusAndKeepsState) {
+  Fixture f;
+  astro::QnsElements bad = f.truth.observer();
+  bad.ex = 1.5;
+  f.filter.reinitialize_observer(bad, Mat6::Identity() * 1e-12);
+  const VectorXd x = f.filter.state();
+  const TimeUpdateSummary s = f.filter.time_update(kT0.plus_seconds(60.0));
+  EXPECT_FALSE(s.usable);
+  EXPECT_FALSE(s.why.empty());
+  EXPECT_EQ(f.filter.state(), x);
+  EXPECT_EQ(f.filter.epoch(), kT0);
+  EXPECT_EQ(f.filter.health().filter.condition, HealthCondition::kOutOfRange);
+}
+
+// The propagation map of one time update: observer and targets through
+// qns_from_roe, GVE-RK4 and roe_from_qns (what the sigma points go through).
+VectorXd propagate_state(const VectorXd& x, TimeTT t0, TimeTT t1) {
+  const dynamics::GveRk4Propagator prop(testing::j2_forces(), dynamics::SpacecraftProperties{});
+  const astro::QnsElements o0 = astro::QnsElements::from_vector(x.head<6>());
+  const astro::QnsElements o1 = prop.propagate(o0, t0, t1);
+  VectorXd y(x.size());
+  y.head<6>() = o1.as_vector();
+  for (int off = 6; off < x.size(); off += 6) {
+    const auto tq = astro::qns_from_roe(o0, astro::Roe::from_vector(x.segment<6>(off)));
+    y.segment<6>(off) = astro::roe_from_qns(o1, prop.propagate(tq, t0, t1)).as_vector();
+  }
+  return y;
+}
+
+// For a small covariance the unscented time update equals the linearised
+// P- = F P F^T with F by central differences of the full propagation map;
+// this also checks the Cholesky-structure reuse of propagations.
+TEST(SodNumerics, TimeUpdateCovarianceMatchesLinearisedPropagation) {
+  SodOptions o;
+  o.q_observer.setZero();
+  o.q_target_a_roe_m2ps.setZero();
+  o.adaptive.enabled = false;
+  Fixture f(o, 1e-4, 1.0);
+  const VectorXd x0 = f.filter.state();
+  const MatrixXd P0 = f.filter.covariance();
+  const TimeTT t1 = kT0.plus_seconds(600.0);
+  const TimeUpdateSummary s = f.filter.time_update(t1);
+  ASSERT_TRUE(s.usable) << s.why;
+  // Propagations: observer 1 + 12, target k 1 + 2 * (6 + 6 (k + 1)).
+  EXPECT_EQ(s.propagations, 13 + 25 + 37);
+  const int n = static_cast<int>(x0.size());
+  MatrixXd F(n, n);
+  for (int k = 0; k < n; ++k) {
+    const double h = std::sqrt(P0(k, k));
+    VectorXd xp = x0, xm = x0;
+    xp[k] += h;
+    xm[k] -= h;
+    F.col(k) = f.filter.state_difference(propagate_state(xp, kT0, t1), propagate_state(xm, kT0, t1)) /
+               (2.0 * h);
+  }
+  const MatrixXd P_lin = F * P0 * F.transpose();
+  const MatrixXd& P = f.filter.covariance();
+  // Compare in correlation-normalised form (state scales differ by 1e14).
+  const VectorXd s_lin = P_lin.diagonal().cwiseSqrt();
+  const MatrixXd D = s_lin.cwiseInverse().asDiagonal();
+  EXPECT_LT(((D * (P - P_lin) * D)).cwiseAbs().maxCoeff(), 1e-3);
+  const VectorXd dx = f.filter.state_difference(f.filter.state(), propagate_state(x0, kT0, t1));
+  EXPECT_LT(dx.cwiseQuotient(s_lin).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+// For a small covariance the unscented bearing update equals the Kalman
+// update with H from central differences of the bearing model.
+TEST(SodNumerics, BearingUpdateMatchesLinearisedKalmanUpdate) {
+  Fixture f(SodOptions{}, 1e-4, 1.0);
+  const VectorXd x0 = f.filter.state();
+  const MatrixXd P0 = f.filter.covariance();
+  const double sigma = 20 * astro::kArcsecToRad;
+  BearingMeasurement m = f.truth.bearing(1, sigma, 0.0, nullptr);
+  m.angles.az_rad += sigma;
+  m.angles.el_rad -= sigma;
+  const auto h = [&](const VectorXd& x) -> Eigen::Vector2d {
+    const auto o = astro::QnsElements::from_vector(x.head<6>());
+    const auto t = astro::qns_from_roe(o, astro::Roe::from_vector(x.segment<6>(12)));
+    return astro::bearing_from_eci(astro::cartesian_from_qns(o).r_m, astro::cartesian_from_qns(t).r_m,
+                                   m.R_v_from_eci)
+        .as_vector();
+  };
+  const int n = static_cast<int>(x0.size());
+  MatrixXd H(2, n);
+  for (int k = 0; k < n; ++k) {
+    const double step = 1e-2 * std::sqrt(P0(k, k));
+    VectorXd xp = x0, xm = x0;
+    xp[k] += step;
+    xm[k] -= step;
+    H.col(k) = (h(xp) - h(xm)) / (2.0 * step);
+  }
+  const Eigen::Matrix2d S = H * P0 * H.transpose() + Eigen::Matrix2d::Identity() * sigma * sigma;
+  const MatrixXd K = P0 * H.transpose() * S.inverse();
+  const Eigen::Vector2d nu = m.angles.as_vector() - h(x0);
+  const VectorXd x_lin = x0 + K * nu;
+  const MatrixXd P_lin = P0 - K * S * K.transpose();
+  const UpdateSummary s = f.filter.update_bearing(m);
+  ASSERT_TRUE(s.usable) << s.brief_report();
+  EXPECT_NEAR(s.nis, nu.dot(S.inverse() * nu), 1e-3 * s.nis);
+  const VectorXd sd = P0.diagonal().cwiseSqrt();
+  EXPECT_LT(f.filter.state_difference(f.filter.state(), x_lin).cwiseQuotient(sd).cwiseAbs().maxCoeff(), 1e-3);
+  const MatrixXd D = sd.cwiseInverse().asDiagonal();
+  EXPECT_LT((D * (f.filter.covariance() - P_lin) * D).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+TEST(SodNumerics, UkfWeightsAndNees) {
+  Fixture f;
+  const int n = f.filter.layout().size();
+  EXPECT_NEAR(f.filter.weights_mean().sum(), 1.0, 1e-12);
+  const SodOptions& o = f.filter.options();
+  EXPECT_NEAR(f.filter.weights_covariance().sum(),
+              1.0 + 1.0 - o.ukf_alpha * o.ukf_alpha + o.ukf_beta, 1e-12);
+  EXPECT_EQ(f.filter.weights_mean().size(), 2 * n + 1);
+  EXPECT_DOUBLE_EQ(f.filter.nees(f.filter.state()), 0.0);
+  // Diagonal P: one sigma off in one component gives NEES 1; u wraps.
+  VectorXd x = f.filter.state();
+  const int i = StateLayout::kU;
+  x[i] = astro::wrap_two_pi(x[i] + std::sqrt(f.filter.covariance()(i, i)) + astro::kTwoPi);
+  EXPECT_NEAR(f.filter.nees(x), 1.0, 1e-6);
+}
+
+// The adaptive estimate stays inside [floor, ceiling] x nominal.
+TEST(SodAdaptiveNoise, ClampedBetweenFloorAndCeiling) {
+  SodOptions o;
+  o.adaptive.forgetting = 0.5;
+  o.bearing_gate_mahalanobis = kInf;
+  Fixture f(o, 0.05, 100.0);
+  const VectorXd q0 = f.filter.process_noise_rate();
+  for (int s = 1; s <= 20; ++s) {
+    f.truth.advance_to(kT0.plus_seconds(60.0 * s));
+    BearingMeasurement m = f.truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
+    m.angles.az_rad += (s % 2 ? 1 : -1) * 0.01;  // large corrections: q grows
+    ASSERT_TRUE(f.filter.update_bearing(m).usable);
+  }
+  ASSERT_TRUE(f.filter.time_update(kT0.plus_seconds(60.0 * 21)).usable);
+  const VectorXd& q = f.filter.process_noise_rate();
+  EXPECT_GT(q.maxCoeff(), 0.0);
+  for (int i = 0; i < q.size(); ++i) {
+    EXPECT_GE(q[i], o.adaptive.floor_factor * q0[i] * (1 - 1e-12)) << i;
+    EXPECT_LE(q[i], o.adaptive.ceiling_factor * q0[i] * (1 + 1e-12)) << i;
+  }
+  const int dl = f.filter.layout().target_offset(0) + StateLayout::kDlambda;
+  EXPECT_GT(q[dl], q0[dl]);
+}
+
+// The a-priori model's drift term against two-body propagation of a
+// semi-major-axis error: dlambda(t) - dlambda(0) = -1.5 n da t.
+TEST(SodApriori, DlambdaDriftMatchesPropagatedSemiMajorAxisError) {
+  const auto forces = dynamics::ForceModel::load(dynamics::ForceModelOptions::parse("two-body"),
+                                                 ARTMS_DATA_DIR);
+  const dynamics::GveRk4Propagator prop(forces, dynamics::SpacecraftProperties{});
+  const astro::QnsElements o0 = testing::observer_at_start();
+  const double a_da_m = 15.0;
+  const astro::QnsElements t0q =
+      astro::qns_from_roe(o0, astro::Roe::from_scaled_m((Vec6() << a_da_m, 0, 0, 0, 0, 0).finished(), o0.a_m));
+  const double age_days = 1.5, t = age_days * astro::kSecondsPerDay;
+  const TimeTT t1 = kT0.plus_seconds(t);
+  const double a_dl_m =
+      o0.a_m * astro::roe_from_qns(prop.propagate(o0, kT0, t1), prop.propagate(t0q, kT0, t1)).dlambda;
+  AprioriErrorModel m;
+  m.sigma_a_da0_m = a_da_m;
+  m.sigma_a_dlambda0_m = m.sigma_a_da_rate_mpd = 0.0;
+  const AprioriRoe ap = apriori_from_age(age_days, o0.a_m, m);
+  EXPECT_NEAR(ap.sigma_a_roe_m[1], std::abs(a_dl_m), 1e-3 * std::abs(a_dl_m));
+  // The correlation has the sign of the drift: -1.5 n da t.
+  EXPECT_NEAR(ap.P_a_roe_m2(0, 1), a_da_m * a_dl_m, 1e-3 * std::abs(a_da_m * a_dl_m));
+}
+
+TEST(SodApriori, GrowsWithAgeAndDrawsMatchCovariance) {
+  const double a = testing::observer_at_start().a_m;
+  const AprioriRoe fresh = apriori_from_age(0.0, a), old = apriori_from_age(3.0, a);
+  EXPECT_NEAR(fresh.sigma_a_roe_m[1], AprioriErrorModel{}.sigma_a_dlambda0_m, 1e-9);
+  for (int i = 0; i < 6; ++i) EXPECT_GE(old.sigma_a_roe_m[i], fresh.sigma_a_roe_m[i]);
+  EXPECT_GT(old.sigma_a_roe_m[1], 10.0 * fresh.sigma_a_roe_m[1]);
+  EXPECT_NEAR((old.P_roe * a * a - old.P_a_roe_m2).cwiseAbs().maxCoeff(), 0.0,
+              1e-9 * old.P_a_roe_m2.maxCoeff());
+  EXPECT_THROW(apriori_from_age(-1.0, a), std::invalid_argument);
+  std::mt19937_64 rng(7);
+  Mat6 C = Mat6::Zero();
+  const int kDraws = 20000;
+  for (int k = 0; k < kDraws; ++k) {
+    const Vec6 e = draw_apriori_error_a_roe_m(old, rng);
+    C += e * e.transpose() / kDraws;
+  }
+  for (int i = 0; i < 6; ++i)
+    EXPECT_NEAR(C(i, i), old.P_a_roe_m2(i, i), 0.05 * old.P_a_roe_m2(i, i)) << i;
+  const double rho = old.P_a_roe_m2(0, 1) / std::sqrt(old.P_a_roe_m2(0, 0) * old.P_a_roe_m2(1, 1));
+  EXPECT_NEAR(C(0, 1) / std::sqrt(C(0, 0) * C(1, 1)), rho, 0.03);
+}
+
+}  // namespace
+}  // namespace artms::sod
