@@ -37,7 +37,7 @@ namespace fs = std::filesystem;
 
 int run(int argc, char** argv) {
   CLI::App app{"Run IMP's per-frame processing (detection, centroids, Pyramid star ID, attitude)\n"
-               "over a folder of frames; SAMUS tracking is not implemented yet.",
+               "over a folder of frames, then SAMUS tracking (with --observer-orbit).",
                "artms-imp"};
   std::string camera_path, frames_dir, out;
   double vmag_limit = 6.5;

@@ -1,5 +1,7 @@
 #include "artms/imp/frame_processor.hpp"
 
+#include "artms/imp/qmethod.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -56,16 +58,39 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
     prior_.reset();
     return out;
   }
+  // Attitude by Davenport's q-method from the identified stars, each
+  // weighted by its centroid's 1/sigma^2 (the identification's own Kabsch
+  // solution is the fallback should the q-method be unusable).
+  std::vector<WeightedPair> pairs;
+  for (const auto& [idx, cat_id] : id.matches) {
+    const auto& c = det.centroids[order[static_cast<std::size_t>(idx)]];
+    const double s = std::max(c.sigma_px, 0.01) / K_.fx;
+    pairs.push_back({dirs[static_cast<std::size_t>(idx)],
+                     catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci, 1.0 / (s * s)});
+  }
+  const AttitudeSolution q = q_method(pairs);
   out.attitude_usable = true;
-  out.q_cam_from_eci = id.q_cam_from_eci;
   out.stars_matched = static_cast<int>(id.matches.size());
-  out.residual_rms_rad = id.residual_rms_rad;
-  prior_ = id.q_cam_from_eci;
+  if (q.usable) {
+    out.q_cam_from_eci = q.q_body_from_ref;
+    out.residual_rms_rad = q.residual_rms_rad;
+    // Per-axis attitude 1-sigma across the boresight: from the q-method
+    // covariance, but never below the star residual scatter / sqrt(N)
+    // (the centroid sigmas leave out calibration errors).
+    out.attitude_sigma_rad =
+        std::max(std::sqrt(0.5 * (q.covariance_rad2(0, 0) + q.covariance_rad2(1, 1))),
+                 q.residual_rms_rad / std::sqrt(static_cast<double>(pairs.size())));
+  } else {
+    out.q_cam_from_eci = id.q_cam_from_eci;
+    out.residual_rms_rad = id.residual_rms_rad;
+    out.attitude_sigma_rad = id.residual_rms_rad;
+  }
+  prior_ = out.q_cam_from_eci;
   prior_t_s_ = t_s;
 
   std::vector<bool> is_star(order.size(), false);
   for (const auto& [idx, cat] : id.matches) is_star[static_cast<std::size_t>(idx)] = true;
-  const Eigen::Matrix3d R_eci_from_cam = id.q_cam_from_eci.toRotationMatrix().transpose();
+  const Eigen::Matrix3d R_eci_from_cam = out.q_cam_from_eci.toRotationMatrix().transpose();
   // Forget frames beyond the history window.
   while (!history_.empty() && (static_cast<int>(history_.size()) >= opt_.persistence.history_frames ||
                                t_s - history_.front().t_s > opt_.persistence.history_max_age_s)) {
@@ -83,7 +108,7 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
     cand.flux_dn = c.flux_dn;
     cand.u_cam = dirs[n];
     cand.u_eci = (R_eci_from_cam * dirs[n]).normalized();
-    cand.sigma_rad = std::hypot(c.sigma_px / K_.fx, id.residual_rms_rad);
+    cand.sigma_rad = std::hypot(c.sigma_px / K_.fx, out.attitude_sigma_rad);
     now.px.emplace_back(c.x_px, c.y_px);
     now.u_eci.push_back(cand.u_eci);
     // Uncatalogued star: same inertial direction as an object of an earlier frame.

@@ -30,7 +30,7 @@ struct Candidate {
   double flux_dn = 0.0;
   Eigen::Vector3d u_cam = Eigen::Vector3d::UnitZ();  // unit line of sight, camera components
   Eigen::Vector3d u_eci = Eigen::Vector3d::UnitZ();  // unit line of sight, ECI (J2000) components
-  double sigma_rad = 0.0;  // 1-sigma per axis: centroid noise and attitude residual
+  double sigma_rad = 0.0;  // 1-sigma per axis: centroid noise and attitude uncertainty
 };
 
 struct PersistenceOptions {
@@ -67,7 +67,8 @@ struct FrameSummary {
   std::string status;  // "ok", "no_detections", "not_identified"
   Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
   int stars_matched = 0;
-  double residual_rms_rad = 0.0;
+  double residual_rms_rad = 0.0;   // RMS angle, identified stars vs rotated catalog
+  double attitude_sigma_rad = 0.0; // per-axis 1-sigma across the boresight
   bool used_prior = false;
   int detections = 0;
   int hot_pixels_removed = 0;

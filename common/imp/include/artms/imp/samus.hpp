@@ -36,7 +36,7 @@
 //  * Initiation: DBSCAN (n_D = dbscan_min_points within eps_D =
 //    dbscan_radius_rad) on the unassigned candidates of the last
 //    dbscan_frames frames; a cluster with n_D distinct frames whose chain
-//    passes rules 1-4 and fits eq. (9) starts a tentative track.
+//    passes rules 1-3 and fits eq. (9) starts a tentative track.
 //  * Eclipse joining: when a tentative track reaches confirm_measurements,
 //    eq. (9) is fitted to it together with every lost track (gap <=
 //    join_max_gap_s); compatible pairs (chi-square per degree of freedom <=
@@ -45,7 +45,8 @@
 //  * SOD-aided mode: for a track with a TargetPrediction (SOD's predicted
 //    measurement and covariance from an unscented transform), the rules are
 //    replaced by a Mahalanobis gate on that prediction (aided_gate_chi2) and
-//    the cost is the Mahalanobis distance squared.
+//    the Mahalanobis distance squared replaces the prediction, speed and
+//    direction terms of the cost (fit and brightness terms stay).
 #pragma once
 
 #include <Eigen/Core>
@@ -127,7 +128,7 @@ struct TrackInfo {
 
 struct SamusFrameSummary {
   int candidates = 0;
-  int assigned = 0;         // candidates taken by a track's best hypothesis
+  int assigned = 0;         // candidates taken by any hypothesis of an active track
   int tracks_started = 0;
   int tracks_joined = 0;
   int tracks_dropped = 0;   // tentative tracks lost before confirmation
