@@ -17,7 +17,9 @@
 #include "artms/imp/frame_processor.hpp"
 #include "artms/imp/samus.hpp"
 #include "artms/runtime/runtime.hpp"
+#include "navigator.hpp"
 
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -99,10 +101,20 @@ int run(const runtime::ServiceOptions& opt) {
     so.dbscan_frames = up.tuning.imp.dbscan_frames;
     samus.emplace(so);
   }
+
   // The onboard model (the observer's own, not the truth propagator).
   const auto forces = dynamics::ForceModel::load(up.force_model, ARTMS_DATA_DIR);
   const dynamics::GveRk4Propagator onboard(forces, dynamics::SpacecraftProperties{});
-
+  // Navigation mode 1: SOD from GNSS, the ground a-priori and IMP's bearings.
+  std::optional<observer::Navigator> navigator;
+  if (cfg->mode == 1 && samus && !up.apriori.empty()) navigator.emplace(up, forces);
+  std::deque<std::int64_t> frame_times_ns;                 // time tags of frames given to SAMUS
+  std::map<std::uint32_t, Eigen::Quaterniond> frame_attitude;  // recent frames' q_cam_from_eci
+  const int n_scan = imp::SamusOptions{}.n_scan;
+  auto drain_messages = [&](std::int64_t t_ns) {
+    if (!navigator) return;
+    for (const auto& m : navigator->take_messages()) events.info(t_ns, m);
+  };
   // Readers of what the observer writes: the recorder only (runtime::topology).
   const std::map<std::string, int> rt = {{"nav_telemetry", 1}, {"event", 1}, {"imp_report", 1}};
   clock.announce_ready(participant,
@@ -142,6 +154,7 @@ int run(const runtime::ServiceOptions& opt) {
         return;
       }
       if (!last_fix || last_fix->t <= fix.t) last_fix = fix;
+      if (navigator) navigator->add_gnss({fix.t, fix.x, fix.sigma_r, fix.sigma_v});
     });
     // Camera frames: checked, then IMP (frame processing, SAMUS tracking with
     // the coarse orbit from the latest GNSS fix); the decided measurements
@@ -198,9 +211,19 @@ int run(const runtime::ServiceOptions& opt) {
           in.observer_eci = astro::cartesian_from_qns(onboard.propagate(astro::qns_from_cartesian(last_fix->x), last_fix->t, tf));
           in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
           in.candidates = fr.candidates;
-          for (const auto& m : samus->process(in).released) {
-            add(static_cast<std::uint32_t>(m.frame), static_cast<std::int64_t>(std::llround(m.t_s * 1e9)), m.track_id,
-                m.c);
+          // SOD-aided tracking for tracks bound to converged targets.
+          const auto aided = navigator ? navigator->predictions(tf, *samus) : std::vector<imp::TargetPrediction>{};
+          frame_attitude[f.frame_seq] = fr.q_cam_from_eci;
+          while (frame_attitude.size() > 64) frame_attitude.erase(frame_attitude.begin());
+          frame_times_ns.push_back(f.time_tag_tt_ns);
+          while (frame_times_ns.size() > 64) frame_times_ns.pop_front();
+          for (const auto& m : samus->process(in, aided).released) {
+            const std::int64_t t_ns = static_cast<std::int64_t>(std::llround(m.t_s * 1e9));
+            add(static_cast<std::uint32_t>(m.frame), t_ns, m.track_id, m.c);
+            const auto qa = frame_attitude.find(static_cast<std::uint32_t>(m.frame));
+            if (navigator && qa != frame_attitude.end()) {
+              navigator->add_bearing(astro::TimeTT{t_ns}, m.track_id, m.c.u_eci, qa->second);
+            }
           }
         } else {
           // No orbit yet: SAMUS cannot run; the candidates are reported untracked.
@@ -220,6 +243,11 @@ int run(const runtime::ServiceOptions& opt) {
       samus_flushed = true;
       std::vector<artms_msg_ImpMeasurement> out;
       for (const auto& m : samus->flush()) {
+        const auto qa = frame_attitude.find(static_cast<std::uint32_t>(m.frame));
+        if (navigator && qa != frame_attitude.end()) {
+          navigator->add_bearing(astro::TimeTT{static_cast<std::int64_t>(std::llround(m.t_s * 1e9))}, m.track_id,
+                                 m.c.u_eci, qa->second);
+        }
         artms_msg_ImpMeasurement x{};
         x.frame_seq = static_cast<std::uint32_t>(m.frame);
         x.t_tt_ns = static_cast<std::int64_t>(std::llround(m.t_s * 1e9));
@@ -246,13 +274,47 @@ int run(const runtime::ServiceOptions& opt) {
                                         std::to_string(samus->tracks().size()) + " tracks, " +
                                         std::to_string(measurements_released) + " measurements reported");
     }
+    // SOD catches up with everything IMP has decided.
+    if (navigator && !tick->final_step) {
+      if (last_step) {
+        navigator->finish(*samus);
+      } else {
+        const std::int64_t safe = frame_times_ns.size() > static_cast<std::size_t>(n_scan)
+                                      ? frame_times_ns[frame_times_ns.size() - 1 - static_cast<std::size_t>(n_scan)]
+                                      : up.epoch.ns_since_j2000;
+        navigator->advance(astro::TimeTT{safe}, t, *samus);
+      }
+      drain_messages(t.ns_since_j2000);
+    }
+    std::vector<artms_msg_TargetEstimate> estimates;
     if (!tick->final_step) {
       artms_msg_NavTelemetry nav{};
       nav.frames_received = frames_received;
       dds::copy_string(nav.observer, sizeof nav.observer, me);
       nav.t_tt_ns = t.ns_since_j2000;
       nav.mode = 0;
-      if (last_fix) {
+      const observer::NavReport nr = navigator ? navigator->report(t) : observer::NavReport{};
+      if (nr.valid) {
+        nav.mode = 1;
+        nav.health = static_cast<std::uint8_t>(nr.health);
+        nav.source = 1;  // SOD
+        for (int i = 0; i < 3; ++i) {
+          nav.r_eci_m[i] = nr.x_eci.r_m[i];
+          nav.v_eci_mps[i] = nr.x_eci.v_mps[i];
+        }
+        for (int i = 0; i < 36; ++i) nav.covariance_rv[i] = nr.P_rv.data()[i];
+        for (const auto& tr : nr.targets) {
+          artms_msg_TargetEstimate e{};
+          dds::copy_string(e.target, sizeof e.target, tr.id);
+          for (int i = 0; i < 6; ++i) e.roe[i] = tr.roe[i];
+          for (int i = 0; i < 36; ++i) e.covariance_roe[i] = tr.P_roe.data()[i];
+          e.local_measurements = tr.local_measurements;
+          estimates.push_back(e);
+        }
+        nav.targets._buffer = estimates.data();
+        nav.targets._length = nav.targets._maximum = static_cast<std::uint32_t>(estimates.size());
+        nav.targets._release = false;
+      } else if (last_fix) {
         astro::StateVector x = last_fix->x;
         const double dt = astro::seconds_between(last_fix->t, t);
         if (dt != 0.0) {
@@ -297,6 +359,6 @@ int run(const runtime::ServiceOptions& opt) {
 int main(int argc, char** argv) {
   return runtime::run_service(argc, argv, "artms-observer",
                               "One ARTMS observer process (IMP -> BOD -> SOD on its own frames, GNSS and ISL).\n"
-      "Until IMP and SOD land it runs the GNSS-only baseline navigation mode.",
+      "Mode 1 (SOD with GNSS, ground a-priori and its own bearings) or the GNSS-only baseline.",
                               run);
 }

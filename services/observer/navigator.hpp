@@ -1,0 +1,126 @@
+// Navigation mode 1 of one observer (paper, "Navigation Modes" and
+// "Sequential Orbit Determination"): SOD (sod::SodFilter) over the observer's
+// absolute elements and the ROE of every target, initialised from the first
+// GNSS fix and the uplinked ground a-priori, updated with the observer's GNSS
+// fixes and with the bearings IMP decided.
+//
+// Timing: SAMUS decides measurements n_scan frames late, so the filter runs
+// behind the clock: events (GNSS fixes, bearings) are queued and processed in
+// time order up to a safe time (the latest decided frame, or the clock minus
+// max_lag_s); a bearing older than the filter epoch when it arrives (the first
+// measurements of a track that DBSCAN just started) is counted late and
+// skipped. Telemetry at a step is the filter state predicted to the step time.
+//
+// Tracks and targets: a SAMUS track is bound to the SOD target whose
+// unscented prediction (samus.hpp) fits its measurements best, once
+// association_min_measurements of them give a mean squared Mahalanobis
+// distance below association_max_d2 and the second best target is at least
+// association_ambiguity times worse; until then its bearings only serve the
+// association.
+//
+// Health (the paper's four checks, sod::SodFilter::health): a target failing
+// (3) large residuals or (4) valid range is re-initialised from the ground
+// a-priori (its along-track drift applied); (1) needs BOD (not yet in this
+// emulator); (2) is applied to the filter as a whole (a sparsely seen target
+// keeps its estimate, as in the paper's SV3 case), and a filter failing (2) or
+// (4) is re-initialised from the next GNSS fix and the a-priori.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <deque>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "artms/config/uplink.hpp"
+#include "artms/imp/samus.hpp"
+#include "artms/sod/sod_filter.hpp"
+
+namespace artms::observer {
+
+struct NavigatorOptions {
+  double max_lag_s = 600.0;
+  int association_min_measurements = 3;
+  double association_max_d2 = 16.0;
+  double association_ambiguity = 4.0;
+  double aided_max_dlambda_fraction = 0.02;  // SOD-aided SAMUS once a*dlambda 1-sigma < 2 % of range
+};
+
+struct TargetReport {
+  std::string id;
+  astro::Vec6 roe = astro::Vec6::Zero();
+  astro::Mat6 P_roe = astro::Mat6::Zero();
+  std::uint32_t local_measurements = 0;
+};
+
+struct NavReport {
+  bool valid = false;
+  int health = 2;  // 0 healthy, 1 re-initialising, 2 no solution
+  astro::StateVector x_eci;
+  Eigen::Matrix<double, 6, 6> P_rv = Eigen::Matrix<double, 6, 6>::Zero();
+  std::vector<TargetReport> targets;
+};
+
+class Navigator {
+ public:
+  Navigator(const config::ObserverUplink& up, const dynamics::ForceModel& forces, NavigatorOptions options = {});
+
+  void add_gnss(const sod::GnssMeasurement& m);
+  // A bearing released by SAMUS: time tag, track, unit line of sight (ECI)
+  // and the attitude of its frame.
+  void add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci);
+  // Processes queued events up to t_safe (and at most up to t_now - max_lag_s
+  // behind). samus supplies the tracking plane for association.
+  void advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Samus& samus);
+  // Everything queued (end of run).
+  void finish(const imp::Samus& samus);
+  [[nodiscard]] NavReport report(astro::TimeTT t) const;
+  // SOD-aided SAMUS: predictions at t for tracks bound to converged targets.
+  [[nodiscard]] std::vector<imp::TargetPrediction> predictions(astro::TimeTT t, const imp::Samus& samus) const;
+
+  // Events for the event log, drained by the caller.
+  std::vector<std::string> take_messages() { return std::exchange(messages_, {}); }
+  [[nodiscard]] std::size_t late_measurements() const { return late_; }
+  [[nodiscard]] bool initialised() const { return filter_.has_value(); }
+
+ private:
+  struct Event {
+    astro::TimeTT t;
+    int kind = 0;  // 0 GNSS, 1 bearing
+    sod::GnssMeasurement gnss;
+    int track = -1;
+    Eigen::Vector3d u_eci = Eigen::Vector3d::Zero();
+    Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
+  };
+  struct Association {
+    std::vector<double> d2_sum;
+    int n = 0;
+    int target = -1;
+    astro::TimeTT last;
+  };
+
+  const config::ObserverUplink& up_;
+  const dynamics::ForceModel& forces_;
+  NavigatorOptions opt_;
+  sod::SodOptions sod_opt_;
+  std::vector<std::string> target_ids_;
+  std::optional<sod::SodFilter> filter_;
+  bool reinit_pending_ = false;
+  double a_observer_m_ = 6.9e6;  // for the a-priori drift; set from the first GNSS fix
+  std::vector<Event> queue_;
+  std::map<int, Association> tracks_;
+  std::vector<std::uint32_t> local_;
+  std::size_t late_ = 0;
+  std::vector<std::string> messages_;
+
+  void process(const Event& e, const imp::Samus& samus);
+  void initialise(const sod::GnssMeasurement& g);
+  [[nodiscard]] astro::Roe apriori_at(int k, astro::TimeTT t) const;
+  void check_health();
+  // Unscented prediction of target k's tracking-plane coordinates from the
+  // filter state (at the filter epoch).
+  bool predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const;
+};
+
+}  // namespace artms::observer

@@ -1,0 +1,227 @@
+#include "evaluation.hpp"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "artms/astro/elements.hpp"
+#include "artms/astro/roe.hpp"
+#include "artms/io/oem.hpp"
+
+namespace artms::swarm {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<std::string> split(const std::string& line, char sep = ',') {
+  std::vector<std::string> out;
+  std::stringstream ss(line);
+  std::string c;
+  while (std::getline(ss, c, sep)) out.push_back(c);
+  return out;
+}
+
+// Header name -> column index.
+std::map<std::string, std::size_t> columns(const std::string& header) {
+  std::map<std::string, std::size_t> m;
+  const auto h = split(header);
+  for (std::size_t i = 0; i < h.size(); ++i) m[h[i]] = i;
+  return m;
+}
+
+struct Row {
+  std::int64_t t;
+  std::string observer, target;
+  astro::Vec6 roe, sigma;
+  astro::Mat6 P;
+  bool full_P = false;
+  long local = 0, remote = 0;
+};
+
+constexpr const char* kRoeNames[6] = {"da", "dlambda", "dex", "dey", "dix", "diy"};
+
+}  // namespace
+
+void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::json& summary) {
+  const double period_s = sc.reference_period_s();
+  std::map<std::string, std::map<std::int64_t, astro::StateVector>> truth;
+  try {
+    if (fs::exists(dir / "truth.oem")) {
+      for (const auto& seg : io::read_oem_file((dir / "truth.oem").string()).segments) {
+        for (const auto& s : seg.samples) truth[seg.object_name][s.t.ns_since_j2000] = s.x_eci;
+      }
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "artms-swarm: evaluation: truth.oem unreadable (%s)\n", e.what());
+    return;
+  }
+  fs::create_directories(dir / "eval");
+  // Observers: absolute position/velocity errors.
+  {
+    std::ofstream out(dir / "eval" / "observers.csv");
+    out << "t_utc,t_tt_ns,observer,mode,source,pos_err_m,vel_err_mps,sigma_pos_m,sigma_vel_mps\n";
+    for (const auto& o : sc.observers) {
+      summary["observers"][o.spacecraft]["period_s"] = period_s;
+      std::ifstream in(dir / "nav" / (o.spacecraft + ".csv"));
+      std::string line;
+      if (!std::getline(in, line)) continue;
+      const auto col = columns(line);
+      while (std::getline(in, line)) {
+        const auto c = split(line);
+        try {
+          if (c.size() < 17 || c[col.at("health")] == "2") continue;
+          const std::int64_t t = std::stoll(c[col.at("t_tt_ns")]);
+          const auto it = truth[o.spacecraft].find(t);
+          if (it == truth[o.spacecraft].end()) continue;
+          const astro::Vec3 r(std::stod(c[col.at("x_m")]), std::stod(c[col.at("y_m")]), std::stod(c[col.at("z_m")]));
+          const astro::Vec3 v(std::stod(c[col.at("vx_mps")]), std::stod(c[col.at("vy_mps")]),
+                              std::stod(c[col.at("vz_mps")]));
+          const double sr = std::sqrt(std::pow(std::stod(c[col.at("sigma_x_m")]), 2) +
+                                      std::pow(std::stod(c[col.at("sigma_y_m")]), 2) +
+                                      std::pow(std::stod(c[col.at("sigma_z_m")]), 2));
+          const double sv = std::sqrt(std::pow(std::stod(c[col.at("sigma_vx_mps")]), 2) +
+                                      std::pow(std::stod(c[col.at("sigma_vy_mps")]), 2) +
+                                      std::pow(std::stod(c[col.at("sigma_vz_mps")]), 2));
+          char buf[320];
+          std::snprintf(buf, sizeof buf, "%s,%lld,%s,%s,%s,%.3f,%.6f,%.3f,%.6f\n", c[0].c_str(),
+                        static_cast<long long>(t), o.spacecraft.c_str(), c[col.at("mode")].c_str(),
+                        c[col.at("source")].c_str(), (r - it->second.r_m).norm(), (v - it->second.v_mps).norm(), sr, sv);
+          out << buf;
+        } catch (const std::exception&) {
+          // a malformed row is skipped
+        }
+      }
+    }
+  }
+  // Targets.
+  std::vector<Row> rows;
+  {
+    std::ifstream in(dir / "nav" / "targets.csv");
+    std::string line;
+    if (std::getline(in, line)) {
+      const auto col = columns(line);
+      while (std::getline(in, line)) {
+        const auto c = split(line);
+        try {
+          Row r;
+          r.t = std::stoll(c.at(col.at("t_tt_ns")));
+          r.observer = c.at(col.at("observer"));
+          r.target = c.at(col.at("target"));
+          for (int i = 0; i < 6; ++i) {
+            r.roe[i] = std::stod(c.at(col.at(kRoeNames[i])));
+            r.sigma[i] = std::stod(c.at(col.at(std::string("sigma_") + kRoeNames[i])));
+          }
+          r.local = std::stol(c.at(col.at("local_measurements")));
+          r.remote = std::stol(c.at(col.at("remote_measurements")));
+          if (col.count("covariance_upper") && col.at("covariance_upper") < c.size()) {
+            const auto v = split(c[col.at("covariance_upper")], ' ');
+            if (v.size() == 21) {
+              std::size_t n = 0;
+              for (int a = 0; a < 6; ++a) {
+                for (int b = a; b < 6; ++b) r.P(a, b) = r.P(b, a) = std::stod(v[n++]);
+              }
+              r.full_P = true;
+            }
+          }
+          rows.push_back(r);
+        } catch (const std::exception&) {
+        }
+      }
+    }
+  }
+  std::ofstream out(dir / "eval" / "targets.csv");
+  out << "t_utc,t_tt_ns,observer,target,range_m";
+  for (const char* n : kRoeNames) out << ",err_a_" << n << "_m";
+  for (const char* n : kRoeNames) out << ",sigma_a_" << n << "_m";
+  out << ",local_measurements,remote_measurements,health,nees\n";
+  struct Series {
+    std::vector<double> t_s, range, nees;
+    std::vector<astro::Vec6> err, sig;
+    long local = 0, remote = 0;
+  };
+  std::map<std::pair<std::string, std::string>, Series> series;
+  for (const auto& r : rows) {
+    const auto io = truth[r.observer].find(r.t);
+    const auto it = truth[r.target].find(r.t);
+    if (io == truth[r.observer].end() || it == truth[r.target].end()) continue;
+    const astro::QnsElements qo = astro::qns_from_cartesian(io->second);
+    const astro::Vec6 roe_true = astro::roe_from_qns(qo, astro::qns_from_cartesian(it->second)).as_vector();
+    astro::Vec6 d = r.roe - roe_true;
+    d[1] = std::remainder(d[1], 2.0 * M_PI);
+    const astro::Vec6 err = qo.a_m * d;
+    const astro::Vec6 sig = qo.a_m * r.sigma;
+    const double range = (it->second.r_m - io->second.r_m).norm();
+    double nees = std::nan("");
+    if (r.full_P) {
+      const Eigen::LDLT<astro::Mat6> ldlt(r.P);
+      if (ldlt.info() == Eigen::Success && ldlt.isPositive()) nees = d.dot(ldlt.solve(d));
+    }
+    auto& s = series[{r.observer, r.target}];
+    s.t_s.push_back(static_cast<double>(r.t - sc.epoch.ns_since_j2000) * 1e-9);
+    s.range.push_back(range);
+    s.err.push_back(err);
+    s.sig.push_back(sig);
+    s.nees.push_back(nees);
+    s.local = r.local;
+    s.remote = r.remote;
+    char buf[160];
+    out << astro::utc_string(astro::TimeTT{r.t}, 3) << "," << r.t << "," << r.observer << "," << r.target;
+    std::snprintf(buf, sizeof buf, ",%.3f", range);
+    out << buf;
+    for (int i = 0; i < 6; ++i) {
+      std::snprintf(buf, sizeof buf, ",%.4f", err[i]);
+      out << buf;
+    }
+    for (int i = 0; i < 6; ++i) {
+      std::snprintf(buf, sizeof buf, ",%.4f", sig[i]);
+      out << buf;
+    }
+    std::snprintf(buf, sizeof buf, ",%ld,%ld,0,%.4f\n", r.local, r.remote, nees);
+    out << buf;
+  }
+  for (auto& [key, s] : series) {
+    nlohmann::json j;
+    const std::size_t n = s.t_s.size();
+    if (n == 0) continue;
+    const double R = s.range.back();
+    j["final_range_m"] = R;
+    j["final_dlambda_error_pct"] = 100.0 * std::abs(s.err.back()[1]) / R;
+    j["final_dlambda_sigma_pct"] = 100.0 * s.sig.back()[1] / R;
+    j["final_error_a_roe_m"] = std::vector<double>(s.err.back().data(), s.err.back().data() + 6);
+    j["final_sigma_a_roe_m"] = std::vector<double>(s.sig.back().data(), s.sig.back().data() + 6);
+    // Convergence: from here on |a dlambda error| <= 1 % of range.
+    std::size_t k = n;
+    while (k > 0 && std::abs(s.err[k - 1][1]) <= 0.01 * s.range[k - 1]) --k;
+    const bool converged = k < n;
+    j["convergence_orbits"] = converged ? nlohmann::json((s.t_s[k] - s.t_s.front()) / period_s) : nlohmann::json(nullptr);
+    const std::size_t from = converged ? k : n / 2;
+    nlohmann::json frac;
+    for (int i = 0; i < 6; ++i) {
+      std::size_t in = 0;
+      for (std::size_t m = from; m < n; ++m) in += std::abs(s.err[m][i]) <= 3.0 * s.sig[m][i] ? 1 : 0;
+      frac[kRoeNames[i]] = n > from ? static_cast<double>(in) / static_cast<double>(n - from) : 0.0;
+    }
+    j["frac_within_3sigma"] = frac;
+    double nees_sum = 0.0;
+    std::size_t nees_n = 0, nees_in = 0;
+    for (std::size_t m = from; m < n; ++m) {
+      if (!std::isfinite(s.nees[m])) continue;
+      nees_sum += s.nees[m];
+      ++nees_n;
+      nees_in += (s.nees[m] >= 1.237 && s.nees[m] <= 14.449) ? 1 : 0;
+    }
+    j["nees_mean"] = nees_n ? nlohmann::json(nees_sum / static_cast<double>(nees_n)) : nlohmann::json(nullptr);
+    j["nees_within_95"] = nees_n ? nlohmann::json(static_cast<double>(nees_in) / static_cast<double>(nees_n)) : nlohmann::json(nullptr);
+    j["local_measurements"] = s.local;
+    j["remote_measurements"] = s.remote;
+    summary["observers"][key.first]["targets"][key.second] = j;
+  }
+}
+
+}  // namespace artms::swarm
