@@ -158,6 +158,10 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
   if (e.kind == 0) {
     const auto s = f.update_gnss(e.gnss);
     if (!s.usable && !s.gated) messages_.push_back("SOD: GNSS update not usable: " + s.why);
+  } else if (e.kind == 2) {
+    const double sigma = up_.tuning.sod.bearing_sigma_arcsec * astro::kArcsecToRad;
+    const auto m = sod::bearing_measurement_from_unit_eci(e.t, e.track, e.u_eci, sigma, e.q_cam_from_eci.toRotationMatrix());
+    if (f.update_bearing(m).usable) ++local_[static_cast<std::size_t>(e.track)];
   } else {
     auto& as = tracks_[e.track];
     as.last = e.t;
@@ -272,6 +276,50 @@ NavReport Navigator::report(astro::TimeTT t) const {
     r.targets.push_back(tr);
   }
   return r;
+}
+
+std::vector<int> Navigator::assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
+                                             const Eigen::Quaterniond& q_cam_from_eci,
+                                             const astro::StateVector& observer_eci, const imp::Samus& samus) {
+  std::vector<int> used;
+  if (!filter_ || reinit_pending_ || candidates.empty()) return used;
+  std::optional<sod::SodFilter> f;
+  for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+    bool tracked = false;
+    for (const auto& [tid, as] : tracks_) {
+      if (as.target == static_cast<int>(k) && astro::seconds_between(as.last, t) < 1800.0) tracked = true;
+    }
+    if (tracked) continue;
+    if (!f) {
+      f.emplace(*filter_);
+      if (f->epoch() < t && !f->time_update(t).usable) return used;
+    }
+    imp::TargetPrediction pr;
+    if (!predict_plane(*f, static_cast<int>(k), samus, pr)) continue;
+    // A validity region wider than this is left to SAMUS (too much clutter inside).
+    if (!(std::sqrt(pr.cov.trace()) < opt_.direct_max_sigma_rad)) continue;
+    int hit = -1, hits = 0;
+    for (std::size_t c = 0; c < candidates.size(); ++c) {
+      Eigen::Vector2d p;
+      if (!samus.plane_coordinates(candidates[c].u_eci, observer_eci, p)) continue;
+      const double s2 = candidates[c].sigma_rad * candidates[c].sigma_rad;
+      const Eigen::Matrix2d S = pr.cov + s2 * Eigen::Matrix2d::Identity();
+      if ((p - pr.p).dot(S.ldlt().solve(p - pr.p)) <= opt_.direct_gate_chi2) {
+        hit = static_cast<int>(c);
+        ++hits;
+      }
+    }
+    if (hits != 1) continue;
+    Event e;
+    e.t = t;
+    e.kind = 2;
+    e.track = static_cast<int>(k);
+    e.u_eci = candidates[static_cast<std::size_t>(hit)].u_eci;
+    e.q_cam_from_eci = q_cam_from_eci;
+    queue_.push_back(e);
+    used.push_back(hit);
+  }
+  return used;
 }
 
 std::vector<imp::TargetPrediction> Navigator::predictions(astro::TimeTT t, const imp::Samus& samus) const {

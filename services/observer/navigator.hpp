@@ -45,6 +45,8 @@ struct NavigatorOptions {
   double association_max_d2 = 16.0;
   double association_ambiguity = 4.0;
   double aided_max_dlambda_fraction = 0.02;  // SOD-aided SAMUS once a*dlambda 1-sigma < 2 % of range
+  double direct_gate_chi2 = 9.21;            // 2 dof, 99 %: single detections of untracked targets
+  double direct_max_sigma_rad = 300.0 * 4.84813681109536e-6;  // widest validity region (RSS 1-sigma) used
 };
 
 struct TargetReport {
@@ -76,6 +78,17 @@ class Navigator {
   // Everything queued (end of run).
   void finish(const imp::Samus& samus);
   [[nodiscard]] NavReport report(astro::TimeTT t) const;
+  // SOD-aided assignment of single detections (paper: "target state
+  // estimates from SOD are propagated into the current epoch to provide
+  // predicted track measurements ... a validity region around the
+  // prediction, computed via an unscented transform"): for every target with
+  // no active bound track (a faint, rarely detected one), the candidate of
+  // this frame inside the 99 % validity region of its predicted measurement,
+  // if exactly one is, is queued as a bearing of that target. Returns the
+  // indices of the candidates used.
+  std::vector<int> assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
+                                    const Eigen::Quaterniond& q_cam_from_eci, const astro::StateVector& observer_eci,
+                                    const imp::Samus& samus);
   // SOD-aided SAMUS: predictions at t for tracks bound to converged targets.
   [[nodiscard]] std::vector<imp::TargetPrediction> predictions(astro::TimeTT t, const imp::Samus& samus) const;
 
@@ -87,9 +100,9 @@ class Navigator {
  private:
   struct Event {
     astro::TimeTT t;
-    int kind = 0;  // 0 GNSS, 1 bearing
+    int kind = 0;  // 0 GNSS, 1 bearing of a SAMUS track, 2 bearing assigned by SOD's prediction
     sod::GnssMeasurement gnss;
-    int track = -1;
+    int track = -1;   // kind 1: SAMUS track; kind 2: target index
     Eigen::Vector3d u_eci = Eigen::Vector3d::Zero();
     Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
   };
