@@ -219,8 +219,9 @@ int run(const runtime::ServiceOptions& opt) {
           while (frame_times_ns.size() > 64) frame_times_ns.pop_front();
           // SOD-aided assignment of single detections of untracked targets.
           if (navigator) {
-            for (int ci : navigator->assign_untracked(tf, fr.candidates, fr.q_cam_from_eci, in.observer_eci, *samus)) {
-              add(f.frame_seq, f.time_tag_tt_ns, -2, fr.candidates[static_cast<std::size_t>(ci)]);
+            // Reported with track id -2 - k (k: the target's index in the uplinked a-priori).
+            for (const auto& [ci, k] : navigator->assign_untracked(tf, fr.candidates, fr.q_cam_from_eci, in.observer_eci, *samus)) {
+              add(f.frame_seq, f.time_tag_tt_ns, -2 - k, fr.candidates[static_cast<std::size_t>(ci)]);
             }
           }
           for (const auto& m : samus->process(in, aided).released) {
@@ -228,7 +229,7 @@ int run(const runtime::ServiceOptions& opt) {
             add(static_cast<std::uint32_t>(m.frame), t_ns, m.track_id, m.c);
             const auto qa = frame_attitude.find(static_cast<std::uint32_t>(m.frame));
             if (navigator && qa != frame_attitude.end()) {
-              navigator->add_bearing(astro::TimeTT{t_ns}, m.track_id, m.c.u_eci, qa->second);
+              navigator->add_bearing(astro::TimeTT{t_ns}, m.track_id, m.c.u_eci, qa->second, m.c.sigma_rad);
             }
           }
         } else {
@@ -252,7 +253,7 @@ int run(const runtime::ServiceOptions& opt) {
         const auto qa = frame_attitude.find(static_cast<std::uint32_t>(m.frame));
         if (navigator && qa != frame_attitude.end()) {
           navigator->add_bearing(astro::TimeTT{static_cast<std::int64_t>(std::llround(m.t_s * 1e9))}, m.track_id,
-                                 m.c.u_eci, qa->second);
+                                 m.c.u_eci, qa->second, m.c.sigma_rad);
         }
         artms_msg_ImpMeasurement x{};
         x.frame_seq = static_cast<std::uint32_t>(m.frame);
@@ -315,6 +316,7 @@ int run(const runtime::ServiceOptions& opt) {
           for (int i = 0; i < 6; ++i) e.roe[i] = tr.roe[i];
           for (int i = 0; i < 36; ++i) e.covariance_roe[i] = tr.P_roe.data()[i];
           e.local_measurements = tr.local_measurements;
+          e.remote_measurements = tr.remote_measurements;
           estimates.push_back(e);
         }
         nav.targets._buffer = estimates.data();

@@ -59,9 +59,15 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
     : up_(up), forces_(forces), opt_(options) {
   for (const auto& a : up.apriori) target_ids_.push_back(a.target);
   local_.assign(target_ids_.size(), 0);
+  remote_.assign(target_ids_.size(), 0);
   sod_opt_.health.max_steps_without_update = up.tuning.sod.max_steps_without_update;
   sod_opt_.health.max_large_residuals = up.tuning.sod.max_large_residuals;
   sod_opt_.validate();
+}
+
+void Navigator::add_remote(const RemoteBroadcast& b) {
+  ++remote_broadcasts_;
+  (void)b;  // fusion: navigation mode 3 (issue 8)
 }
 
 void Navigator::add_gnss(const sod::GnssMeasurement& m) {
@@ -72,14 +78,20 @@ void Navigator::add_gnss(const sod::GnssMeasurement& m) {
   queue_.push_back(e);
 }
 
+double Navigator::bearing_sigma(double imp_sigma_rad) const {
+  const double s = up_.tuning.sod.bearing_sigma_arcsec;
+  return s > 0.0 ? s * astro::kArcsecToRad : std::max(imp_sigma_rad, 1.0 * astro::kArcsecToRad);
+}
+
 void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci,
-                            const Eigen::Quaterniond& q_cam_from_eci) {
+                            const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
   Event e;
   e.t = t;
   e.kind = 1;
   e.track = track;
   e.u_eci = u_eci;
   e.q_cam_from_eci = q_cam_from_eci;
+  e.imp_sigma_rad = imp_sigma_rad;
   queue_.push_back(e);
 }
 
@@ -159,8 +171,8 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
     const auto s = f.update_gnss(e.gnss);
     if (!s.usable && !s.gated) messages_.push_back("SOD: GNSS update not usable: " + s.why);
   } else if (e.kind == 2) {
-    const double sigma = up_.tuning.sod.bearing_sigma_arcsec * astro::kArcsecToRad;
-    const auto m = sod::bearing_measurement_from_unit_eci(e.t, e.track, e.u_eci, sigma, e.q_cam_from_eci.toRotationMatrix());
+    const auto m = sod::bearing_measurement_from_unit_eci(e.t, e.track, e.u_eci, bearing_sigma(e.imp_sigma_rad),
+                                                          e.q_cam_from_eci.toRotationMatrix());
     if (f.update_bearing(m).usable) ++local_[static_cast<std::size_t>(e.track)];
   } else {
     auto& as = tracks_[e.track];
@@ -170,7 +182,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       if (!f.time_update(e.t).usable) return;
       Eigen::Vector2d p;
       if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(f.observer()), p)) return;
-      const double s2 = std::pow(up_.tuning.sod.bearing_sigma_arcsec * astro::kArcsecToRad, 2);
+      const double s2 = std::pow(bearing_sigma(e.imp_sigma_rad), 2);
       as.d2_sum.resize(target_ids_.size(), 0.0);
       for (std::size_t k = 0; k < target_ids_.size(); ++k) {
         imp::TargetPrediction pr;
@@ -205,7 +217,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       }
       return;
     }
-    const double sigma = up_.tuning.sod.bearing_sigma_arcsec * astro::kArcsecToRad;
+    const double sigma = bearing_sigma(e.imp_sigma_rad);
     const Eigen::Matrix3d R_v_from_eci = e.q_cam_from_eci.toRotationMatrix();
     const auto m = sod::bearing_measurement_from_unit_eci(e.t, as.target, e.u_eci, sigma, R_v_from_eci);
     const auto s = f.update_bearing(m);
@@ -273,15 +285,16 @@ NavReport Navigator::report(astro::TimeTT t) const {
     tr.roe = f.state().segment<6>(off);
     tr.P_roe = f.covariance().block<6, 6>(off, off);
     tr.local_measurements = local_[k];
+    tr.remote_measurements = remote_[k];
     r.targets.push_back(tr);
   }
   return r;
 }
 
-std::vector<int> Navigator::assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
+std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
                                              const Eigen::Quaterniond& q_cam_from_eci,
                                              const astro::StateVector& observer_eci, const imp::Samus& samus) {
-  std::vector<int> used;
+  std::vector<std::pair<int, int>> used;
   if (!filter_ || reinit_pending_ || candidates.empty()) return used;
   std::optional<sod::SodFilter> f;
   for (std::size_t k = 0; k < target_ids_.size(); ++k) {
@@ -316,8 +329,9 @@ std::vector<int> Navigator::assign_untracked(astro::TimeTT t, const std::vector<
     e.track = static_cast<int>(k);
     e.u_eci = candidates[static_cast<std::size_t>(hit)].u_eci;
     e.q_cam_from_eci = q_cam_from_eci;
+    e.imp_sigma_rad = candidates[static_cast<std::size_t>(hit)].sigma_rad;
     queue_.push_back(e);
-    used.push_back(hit);
+    used.emplace_back(hit, static_cast<int>(k));
   }
   return used;
 }

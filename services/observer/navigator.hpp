@@ -49,11 +49,31 @@ struct NavigatorOptions {
   double direct_max_sigma_rad = 300.0 * 4.84813681109536e-6;  // widest validity region (RSS 1-sigma) used
 };
 
+// What arrives over the inter-satellite link from another observer (paper,
+// "Sequential Orbit Determination": remote bearings are fused, the remote
+// observer's orbit uncertainty accounted for).
+struct RemoteBearing {
+  astro::TimeTT t;
+  std::string track;  // the sender's track label (e.g. "SV2-3"), stable per object
+  Eigen::Vector3d u_eci = Eigen::Vector3d::UnitZ();
+  double sigma_rad = 0.0;
+};
+struct RemoteBroadcast {
+  std::string sender;
+  astro::TimeTT t;
+  astro::StateVector x_eci;                                         // sender's absolute orbit estimate
+  Eigen::Matrix<double, 6, 6> P_rv = Eigen::Matrix<double, 6, 6>::Zero();
+  int source = 0;               // 0 none, 1 SOD, 2 GNSS, 3 ground
+  bool reinitialising = false;
+  std::vector<RemoteBearing> bearings;  // since the sender's previous broadcast
+};
+
 struct TargetReport {
   std::string id;
   astro::Vec6 roe = astro::Vec6::Zero();
   astro::Mat6 P_roe = astro::Mat6::Zero();
   std::uint32_t local_measurements = 0;
+  std::uint32_t remote_measurements = 0;
 };
 
 struct NavReport {
@@ -69,9 +89,14 @@ class Navigator {
   Navigator(const config::ObserverUplink& up, const dynamics::ForceModel& forces, NavigatorOptions options = {});
 
   void add_gnss(const sod::GnssMeasurement& m);
+  // A broadcast received over the ISL (navigation mode 3 fuses its bearings;
+  // other modes count it only).
+  void add_remote(const RemoteBroadcast& b);
+  [[nodiscard]] std::size_t remote_broadcasts() const { return remote_broadcasts_; }
   // A bearing released by SAMUS: time tag, track, unit line of sight (ECI)
   // and the attitude of its frame.
-  void add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci);
+  void add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci,
+                   double imp_sigma_rad);
   // Processes queued events up to t_safe (and at most up to t_now - max_lag_s
   // behind). samus supplies the tracking plane for association.
   void advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Samus& samus);
@@ -84,9 +109,9 @@ class Navigator {
   // prediction, computed via an unscented transform"): for every target with
   // no active bound track (a faint, rarely detected one), the candidate of
   // this frame inside the 99 % validity region of its predicted measurement,
-  // if exactly one is, is queued as a bearing of that target. Returns the
-  // indices of the candidates used.
-  std::vector<int> assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
+  // if exactly one is, is queued as a bearing of that target. Returns
+  // (candidate index, target index) of each assignment.
+  std::vector<std::pair<int, int>> assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
                                     const Eigen::Quaterniond& q_cam_from_eci, const astro::StateVector& observer_eci,
                                     const imp::Samus& samus);
   // SOD-aided SAMUS: predictions at t for tracks bound to converged targets.
@@ -105,6 +130,7 @@ class Navigator {
     int track = -1;   // kind 1: SAMUS track; kind 2: target index
     Eigen::Vector3d u_eci = Eigen::Vector3d::Zero();
     Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
+    double imp_sigma_rad = 0.0;
   };
   struct Association {
     std::vector<double> d2_sum;
@@ -125,12 +151,16 @@ class Navigator {
   std::map<int, Association> tracks_;
   std::vector<std::uint32_t> local_;
   std::size_t late_ = 0;
+  std::size_t remote_broadcasts_ = 0;
+  std::vector<std::uint32_t> remote_;
   std::vector<std::string> messages_;
 
   void process(const Event& e, const imp::Samus& samus);
   void initialise(const sod::GnssMeasurement& g);
   [[nodiscard]] astro::Roe apriori_at(int k, astro::TimeTT t) const;
   void check_health();
+  // The filter's bearing 1-sigma: sod.bearing_sigma_arcsec, or IMP's own when 0.
+  [[nodiscard]] double bearing_sigma(double imp_sigma_rad) const;
   // Unscented prediction of target k's tracking-plane coordinates from the
   // filter state (at the filter epoch).
   bool predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const;

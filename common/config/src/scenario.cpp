@@ -1165,8 +1165,8 @@ class Parser {
               "max_steps_without_update", "max_large_residuals"});
       if (sm.ok()) {
         duration_field(ctx_, sm, "period", t.sod.period_s, false);
-        number_field(ctx_, sm, "bearing_sigma_arcsec", t.sod.bearing_sigma_arcsec, positive(),
-                     "arcsec");
+        number_field(ctx_, sm, "bearing_sigma_arcsec", t.sod.bearing_sigma_arcsec,
+                     non_negative("0 = IMP's own 1-sigma per measurement"), "arcsec");
         const bool a_ok = number_field(ctx_, sm, "eps_assign", t.sod.eps_assign, positive());
         const bool b_ok = number_field(ctx_, sm, "eps_ambig", t.sod.eps_ambig, positive());
         if (a_ok && b_ok && !(t.sod.eps_ambig > t.sod.eps_assign)) {
