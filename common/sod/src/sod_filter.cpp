@@ -336,7 +336,7 @@ bool SodFilter::advance_to(TimeTT t, UpdateSummary& s) {
 }
 
 UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const VectorXd& z,
-                                          const VectorXd& r_diag, double gate, int target) {
+                                          const MatrixXd& R, double gate, int target, bool dry_run) {
   UpdateSummary s;
   s.target = target;
   const int n = layout_.size(), m = 2 * n + 1, nz = static_cast<int>(z.size());
@@ -361,7 +361,7 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
   }
   VectorXd z_mean = Z.col(0);
   for (int j = 1; j < m; ++j) z_mean += wm_[j] * wrap_z(Z.col(j) - Z.col(0));
-  MatrixXd S = r_diag.asDiagonal();
+  MatrixXd S = R;
   MatrixXd Pxz = MatrixXd::Zero(n, nz);
   for (int j = 0; j < m; ++j) {
     const VectorXd dz = wrap_z(Z.col(j) - z_mean);
@@ -378,6 +378,10 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
   }
   s.nis = s.prefit_residual.dot(llt_s.solve(s.prefit_residual));
   s.mahalanobis = std::sqrt(s.nis);
+  if (dry_run) {
+    s.why = "dry run";
+    return s;
+  }
 
   // Health check (3): successive large pre-fit residuals (gated ones included).
   int& large = target >= 0 ? counters_[target].consecutive_large_residuals : consecutive_large_gnss_;
@@ -442,8 +446,59 @@ UpdateSummary SodFilter::update_bearing(const BearingMeasurement& meas) {
   };
   const Eigen::Vector2d r(meas.sigma_az_rad * meas.sigma_az_rad,
                           meas.sigma_el_rad * meas.sigma_el_rad);
-  return unscented_update(model, meas.angles.as_vector(), r, options_.bearing_gate_mahalanobis,
-                          meas.target);
+  return unscented_update(model, meas.angles.as_vector(), MatrixXd(r.asDiagonal()),
+                          options_.bearing_gate_mahalanobis, meas.target);
+}
+
+UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas, bool dry_run) {
+  using L = LineOfSightMeasurement;
+  UpdateSummary s;
+  const auto body_ok = [&](int b, bool external_ok) {
+    return b == L::kObserver || (external_ok && b == L::kExternal) || (b >= 0 && b < layout_.n_targets);
+  };
+  if (!body_ok(meas.from, true) || !body_ok(meas.to, false) || meas.from == meas.to) {
+    s.why = "body index out of range";
+    return s;
+  }
+  s.target = meas.to >= 0 ? meas.to : meas.from;
+  if (!is_finite_positive(meas.sigma_rad) || !meas.los_eci.allFinite() || !(meas.los_eci.norm() > 0.0) ||
+      !meas.from_r_eci_m.allFinite() || !meas.from_P_r_m2.allFinite()) {
+    s.why = "line of sight, sigma or remote position not finite/positive";
+    return s;
+  }
+  if (!advance_to(meas.t, s)) return s;
+  // Angles in a frame whose z is the measured line of sight.
+  const Vec3 z = meas.los_eci.normalized();
+  const Vec3 x = z.unitOrthogonal();
+  Mat3 R_v;
+  R_v.row(0) = x.transpose();
+  R_v.row(1) = z.cross(x).transpose();
+  R_v.row(2) = z.transpose();
+  const double gm = gm_m3ps2_;
+  const StateLayout lay = layout_;
+  const auto position = [gm, lay](const VectorXd& xs, int body) -> Vec3 {
+    const QnsElements obs = QnsElements::from_vector(xs.head<6>());
+    if (body == L::kObserver) return astro::cartesian_from_qns(obs, gm).r_m;
+    const QnsElements t = astro::qns_from_roe(obs, Roe::from_vector(xs.segment<6>(lay.target_offset(body))));
+    return astro::cartesian_from_qns(t, gm).r_m;
+  };
+  MeasurementModel model;
+  const int hi = std::max(meas.from, meas.to);
+  model.cutoff = hi >= 0 ? layout_.target_offset(hi) + StateLayout::kBlock : StateLayout::kBlock;
+  model.angle = {true, true};
+  const int from = meas.from, to = meas.to;
+  const Vec3 r_ext = meas.from_r_eci_m;
+  model.h = [=](const VectorXd& xs) -> VectorXd {
+    const Vec3 a = from == L::kExternal ? r_ext : position(xs, from);
+    return astro::bearing_from_eci(a, position(xs, to), R_v).as_vector();
+  };
+  MatrixXd Rm = MatrixXd::Identity(2, 2) * meas.sigma_rad * meas.sigma_rad;
+  if (from == L::kExternal) {
+    const astro::Mat23 J = astro::bearing_jacobian_target_eci(r_ext, position(x_, to), R_v);
+    Rm += J * meas.from_P_r_m2 * J.transpose();
+  }
+  const astro::Bearing zb = astro::bearing_from_los(R_v * z);
+  return unscented_update(model, zb.as_vector(), Rm, options_.bearing_gate_mahalanobis, s.target, dry_run);
 }
 
 UpdateSummary SodFilter::update_gnss(const GnssMeasurement& meas) {
@@ -464,7 +519,8 @@ UpdateSummary SodFilter::update_gnss(const GnssMeasurement& meas) {
   VectorXd r(6);
   r << Vec3::Constant(meas.sigma_r_m * meas.sigma_r_m),
       Vec3::Constant(meas.sigma_v_mps * meas.sigma_v_mps);
-  return unscented_update(model, meas.x_eci.stacked(), r, options_.gnss_gate_mahalanobis, -1);
+  return unscented_update(model, meas.x_eci.stacked(), MatrixXd(r.asDiagonal()), options_.gnss_gate_mahalanobis,
+                          -1);
 }
 
 // ---------------------------------------------------------------- health

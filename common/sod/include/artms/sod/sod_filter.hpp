@@ -115,6 +115,26 @@ BearingMeasurement bearing_measurement_from_unit_eci(TimeTT t, int target, const
                                                      double sigma_rad,
                                                      const Mat3& R_v_from_eci = Mat3::Identity());
 
+// A bearing taken by another body (multi-observer fusion, paper "Sequential
+// Orbit Determination"): the unit line of sight (ECI) from body `from` to
+// body `to`, where a body is kObserver (this filter's observer) or a target
+// index. A remote observer that is not in the state is kExternal: its
+// position estimate (from its ISL broadcast) and covariance enter the
+// innovation covariance through the bearing Jacobian, R = sigma^2 I + J P J^T.
+// The angles are formed in a frame whose z axis is the measured line of sight
+// (no singularity).
+struct LineOfSightMeasurement {
+  static constexpr int kObserver = -1;
+  static constexpr int kExternal = -2;
+  TimeTT t;
+  int from = kExternal;
+  int to = 0;
+  Vec3 from_r_eci_m = Vec3::Zero();  // kExternal only
+  Mat3 from_P_r_m2 = Mat3::Zero();   // kExternal only
+  Vec3 los_eci = Vec3::UnitZ();
+  double sigma_rad = 0.0;
+};
+
 // GNSS navigation solution of the observer: ECI position and velocity.
 struct GnssMeasurement {
   TimeTT t;
@@ -210,6 +230,11 @@ class SodFilter {
   // first when it differs from epoch().
   UpdateSummary update_bearing(const BearingMeasurement& m);
   UpdateSummary update_gnss(const GnssMeasurement& m);
+  // Line of sight between bodies (remote observers). With dry_run the
+  // innovation and its Mahalanobis distance are computed (after the time
+  // update to m.t) but the state, covariance and counters are left alone:
+  // the assignment test of remote measurements.
+  UpdateSummary update_line_of_sight(const LineOfSightMeasurement& m, bool dry_run = false);
 
   // Health check (1): compares a BOD estimate (at epoch()) with the target's
   // block and stores the result for health() and reinitialize_target_from_bod().
@@ -253,7 +278,7 @@ class SodFilter {
  private:
   struct MeasurementModel;
   UpdateSummary unscented_update(const MeasurementModel& model, const VectorXd& z,
-                                 const VectorXd& r_diag, double gate, int target);
+                                 const MatrixXd& R, double gate, int target, bool dry_run = false);
   [[nodiscard]] bool sigma_points(MatrixXd& X) const;
   void wrap_state(VectorXd& x) const;
   // Symmetrises P, checks x finite and P positive definite, wraps and keeps

@@ -1,0 +1,132 @@
+// Multi-observer lines of sight (SodFilter::update_line_of_sight): the same
+// update as update_bearing for observer -> target; a dry run leaves the
+// filter alone; target -> target bearings (a remote observer that is itself a
+// target) and bearings from an external remote observer close the loop.
+#include <gtest/gtest.h>
+
+#include "artms/sod/sod_filter.hpp"
+#include "sod_scenario.hpp"
+
+namespace artms::sod {
+namespace {
+
+using testing::j2_forces;
+using testing::observer_at_start;
+using testing::shifted_initial_guess;
+using testing::starling_a_roe_m;
+using testing::Truth;
+using L = LineOfSightMeasurement;
+
+const TimeTT kT0 = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
+
+SodFilter make_filter(int n_targets) {
+  return SodFilter(j2_forces(), dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{},
+                   StateLayout{n_targets, 0}, SodOptions{});
+}
+
+TEST(SodLineOfSight, ObserverToTargetMatchesUpdateBearing) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  const auto g = shifted_initial_guess(observer_at_start(), a_roe, 0.05, 100.0);
+  SodFilter f1 = make_filter(2), f2 = make_filter(2);
+  f1.initialize(kT0, g.x, g.P);
+  f2.initialize(kT0, g.x, g.P);
+  const double s = 20 * astro::kArcsecToRad;
+  const auto b = truth.bearing(0, s, 0.0, nullptr);
+  const auto u1 = f1.update_bearing(b);
+  L m;
+  m.t = kT0;
+  m.from = L::kObserver;
+  m.to = 0;
+  m.los_eci = truth.target_eci(0).r_m - truth.observer_eci().r_m;
+  m.sigma_rad = s;
+  const auto u2 = f2.update_line_of_sight(m);
+  ASSERT_TRUE(u1.usable && u2.usable) << u1.why << " / " << u2.why;
+  // The angles are formed in different frames (camera vs line of sight), so
+  // the nonlinear updates agree closely but not to rounding.
+  EXPECT_NEAR(u1.nis, u2.nis, 1e-3 * std::max(1.0, u1.nis));
+  EXPECT_LT((f1.a_roe_m(0) - f2.a_roe_m(0)).cwiseAbs().maxCoeff(), 1e-2);  // m, of a 2.5 km correction
+  EXPECT_LT((f1.a_roe_m(1) - f2.a_roe_m(1)).cwiseAbs().maxCoeff(), 1e-2);
+  EXPECT_LT((f1.a_roe_sigma_m(0) - f2.a_roe_sigma_m(0)).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+TEST(SodLineOfSight, DryRunLeavesTheFilterAlone) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  const auto g = shifted_initial_guess(observer_at_start(), a_roe, 0.05, 100.0);
+  SodFilter f = make_filter(2);
+  f.initialize(kT0, g.x, g.P);
+  L m;
+  m.t = kT0;
+  m.from = 0;
+  m.to = 1;
+  m.los_eci = truth.target_eci(1).r_m - truth.target_eci(0).r_m;
+  m.sigma_rad = 20 * astro::kArcsecToRad;
+  const Eigen::VectorXd x0 = f.state();
+  const Eigen::MatrixXd P0 = f.covariance();
+  const auto s = f.update_line_of_sight(m, true);
+  EXPECT_FALSE(s.usable);
+  EXPECT_TRUE(std::isfinite(s.mahalanobis));
+  EXPECT_EQ(f.state(), x0);
+  EXPECT_EQ(f.covariance(), P0);
+  EXPECT_EQ(f.counters(1).accepted, 0);
+  // An impossible body is refused with a reason.
+  m.to = 5;
+  EXPECT_FALSE(f.update_line_of_sight(m).usable);
+}
+
+TEST(SodLineOfSight, RemoteBearingsBetweenTargetsAndFromAnExternalObserverConverge) {
+  // Target 0 observes target 1 (a remote observer that is also a target),
+  // and an external observer (in the state of nobody, position known to 20 m)
+  // observes target 0; the local observer sees nothing but GNSS. The remote
+  // lines of sight alone must bring both a*dlambda errors well below the
+  // initial 5 % within 6 orbits.
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  auto ext = starling_a_roe_m()[2];  // a third spacecraft, not in the filter
+  Truth ext_truth(kT0, observer_at_start(), {ext});
+  const auto g = shifted_initial_guess(observer_at_start(), a_roe, 0.05, 100.0);
+  SodFilter f = make_filter(2);
+  f.initialize(kT0, g.x, g.P);
+  const double s = 5 * astro::kArcsecToRad;
+  const Vec6 err0 = f.a_roe_m(0) - truth.a_roe_m(0), err1 = f.a_roe_m(1) - truth.a_roe_m(1);
+  int used = 0;
+  for (int k = 1; k <= 6 * 95; ++k) {
+    const TimeTT t = kT0.plus_seconds(60.0 * k);
+    truth.advance_to(t);
+    ext_truth.advance_to(t);
+    ASSERT_TRUE(f.update_gnss(truth.gnss(2.0, 0.01, false, nullptr)).usable);
+    L a;
+    a.t = t;
+    a.from = 0;
+    a.to = 1;
+    a.los_eci = truth.target_eci(1).r_m - truth.target_eci(0).r_m;
+    a.sigma_rad = s;
+    used += f.update_line_of_sight(a).usable ? 1 : 0;
+    L b;
+    b.t = t;
+    b.from = L::kExternal;
+    b.from_r_eci_m = ext_truth.target_eci(0).r_m;
+    b.from_P_r_m2 = Mat3::Identity() * 400.0;
+    b.to = 0;
+    b.los_eci = truth.target_eci(0).r_m - b.from_r_eci_m;
+    b.sigma_rad = s;
+    used += f.update_line_of_sight(b).usable ? 1 : 0;
+  }
+  const Vec6 e0 = f.a_roe_m(0) - truth.a_roe_m(0), e1 = f.a_roe_m(1) - truth.a_roe_m(1);
+  std::printf("remote LOS: %d used; a*dlambda error %.0f -> %.0f m and %.0f -> %.0f m\n", used, err0[1], e0[1],
+              err1[1], e1[1]);
+  EXPECT_GT(used, 1000);
+  EXPECT_LT(std::abs(e0[1]), 0.4 * std::abs(err0[1]));
+  EXPECT_LT(std::abs(e1[1]), 0.2 * std::abs(err1[1]));
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_LT(std::abs(e0[i]), 3.0 * f.a_roe_sigma_m(0)[i] + 1.0) << i;
+    EXPECT_LT(std::abs(e1[i]), 3.0 * f.a_roe_sigma_m(1)[i] + 1.0) << i;
+  }
+}
+
+}  // namespace
+}  // namespace artms::sod
