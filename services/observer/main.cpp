@@ -107,7 +107,7 @@ int run(const runtime::ServiceOptions& opt) {
   const dynamics::GveRk4Propagator onboard(forces, dynamics::SpacecraftProperties{});
   // Navigation mode 1: SOD from GNSS, the ground a-priori and IMP's bearings.
   std::optional<observer::Navigator> navigator;
-  if (cfg->mode == 1 && samus && !up.apriori.empty()) navigator.emplace(up, forces);
+  if ((cfg->mode == 1 || cfg->mode == 3) && samus && !up.apriori.empty()) navigator.emplace(up, forces);
   std::deque<std::int64_t> frame_times_ns;                 // time tags of frames given to SAMUS
   std::map<std::uint32_t, Eigen::Quaterniond> frame_attitude;  // recent frames' q_cam_from_eci
   const int n_scan = imp::SamusOptions{}.n_scan;
@@ -302,7 +302,7 @@ int run(const runtime::ServiceOptions& opt) {
       nav.mode = 0;
       const observer::NavReport nr = navigator ? navigator->report(t) : observer::NavReport{};
       if (nr.valid) {
-        nav.mode = 1;
+        nav.mode = static_cast<std::uint8_t>(cfg->mode);
         nav.health = static_cast<std::uint8_t>(nr.health);
         nav.source = 1;  // SOD
         for (int i = 0; i < 3; ++i) {

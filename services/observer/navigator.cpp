@@ -56,7 +56,8 @@ Mat6 jacobian_rv_from_qns(const astro::QnsElements& oe) {
 }  // namespace
 
 Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceModel& forces, NavigatorOptions options)
-    : up_(up), forces_(forces), opt_(options) {
+    : up_(up), forces_(forces), opt_(options), onboard_(forces, dynamics::SpacecraftProperties{}) {
+  fuse_remote_ = up.observer.mode == 3;
   for (const auto& a : up.apriori) target_ids_.push_back(a.target);
   local_.assign(target_ids_.size(), 0);
   remote_.assign(target_ids_.size(), 0);
@@ -67,7 +68,36 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
 
 void Navigator::add_remote(const RemoteBroadcast& b) {
   ++remote_broadcasts_;
-  (void)b;  // fusion: navigation mode 3 (issue 8)
+  if (!fuse_remote_ || b.bearings.empty()) return;
+  auto it = std::find(senders_.begin(), senders_.end(), b.sender);
+  if (it == senders_.end()) it = senders_.insert(senders_.end(), b.sender);
+  const int sender = static_cast<int>(it - senders_.begin());
+  const bool orbit_ok = b.source != 0 && !b.reinitialising && b.x_eci.r_m.allFinite() && b.x_eci.v_mps.allFinite() &&
+                        b.P_rv.allFinite();
+  std::map<std::int64_t, astro::StateVector> at;  // sender position per bearing epoch
+  for (const auto& rb : b.bearings) {
+    if (!rb.u_eci.allFinite() || !(rb.sigma_rad > 0.0)) continue;
+    Event e;
+    e.t = rb.t;
+    e.kind = 3;
+    e.track = sender;
+    e.u_eci = rb.u_eci;
+    e.imp_sigma_rad = rb.sigma_rad;
+    if (orbit_ok) {
+      auto p = at.find(rb.t.ns_since_j2000);
+      if (p == at.end()) {
+        astro::StateVector x = b.x_eci;
+        if (rb.t != b.t) {
+          x = astro::cartesian_from_qns(onboard_.propagate(astro::qns_from_cartesian(b.x_eci), b.t, rb.t));
+        }
+        p = at.emplace(rb.t.ns_since_j2000, x).first;
+      }
+      e.sender_r_eci_m = p->second.r_m;
+      e.sender_P_r_m2 = b.P_rv.topLeftCorner<3, 3>();
+      e.sender_position_valid = true;
+    }
+    queue_.push_back(e);
+  }
 }
 
 void Navigator::add_gnss(const sod::GnssMeasurement& m) {
@@ -226,6 +256,74 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
   check_health();
 }
 
+void Navigator::process_remote(const std::vector<Event>& group) {
+  if (!filter_ || reinit_pending_ || group.empty()) return;
+  auto& f = *filter_;
+  if (group.front().t < f.epoch()) {
+    remote_late_ += group.size();
+    return;
+  }
+  using L = sod::LineOfSightMeasurement;
+  const std::string& sender = senders_[static_cast<std::size_t>(group.front().track)];
+  const auto own = std::find(target_ids_.begin(), target_ids_.end(), sender);
+  const int from = own != target_ids_.end() ? static_cast<int>(own - target_ids_.begin()) : L::kExternal;
+  if (from == L::kExternal && !group.front().sender_position_valid) {
+    remote_unassigned_ += group.size();
+    return;
+  }
+  // Candidate bodies: this observer and every target other than the sender.
+  std::vector<int> bodies = {L::kObserver};
+  for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
+    if (k != from) bodies.push_back(k);
+  }
+  auto measurement = [&](const Event& e, int to) {
+    L m;
+    m.t = e.t;
+    m.from = from;
+    m.to = to;
+    m.from_r_eci_m = e.sender_r_eci_m;
+    m.from_P_r_m2 = e.sender_P_r_m2;
+    m.los_eci = e.u_eci;
+    m.sigma_rad = bearing_sigma(e.imp_sigma_rad);
+    return m;
+  };
+  const std::size_t J = group.size(), K = bodies.size();
+  Eigen::MatrixXd D(J, K);
+  for (std::size_t j = 0; j < J; ++j) {
+    for (std::size_t k = 0; k < K; ++k) {
+      const auto s = f.update_line_of_sight(measurement(group[j], bodies[k]), true);
+      D(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(k)) = std::isfinite(s.mahalanobis) ? s.mahalanobis : 1e9;
+    }
+  }
+  const double eps_assign = up_.tuning.sod.eps_assign, eps_ambig = up_.tuning.sod.eps_ambig;
+  for (std::size_t j = 0; j < J; ++j) {
+    int assigned = -1;
+    for (std::size_t k = 0; k < K && assigned < 0; ++k) {
+      const auto jj = static_cast<Eigen::Index>(j), kk = static_cast<Eigen::Index>(k);
+      if (!(D(jj, kk) <= eps_assign)) continue;                      // (1)
+      bool ok = true;
+      for (std::size_t l = 0; l < J; ++l) {                          // (2)
+        if (l != j && D(static_cast<Eigen::Index>(l), kk) < eps_ambig) ok = false;
+      }
+      for (std::size_t p = 0; p < K; ++p) {                          // (3)
+        if (p != k && D(jj, static_cast<Eigen::Index>(p)) < eps_ambig) ok = false;
+      }
+      if (ok) assigned = static_cast<int>(k);
+    }
+    if (assigned < 0) {
+      ++remote_unassigned_;
+      continue;
+    }
+    const int to = bodies[static_cast<std::size_t>(assigned)];
+    if (f.update_line_of_sight(measurement(group[j], to)).usable) {
+      ++remote_assigned_;
+      const int body = to >= 0 ? to : from;  // the target whose relative orbit it measures
+      if (body >= 0) ++remote_[static_cast<std::size_t>(body)];
+    }
+  }
+  check_health();
+}
+
 void Navigator::check_health() {
   auto& f = *filter_;
   const sod::HealthReport h = f.health();
@@ -259,7 +357,20 @@ void Navigator::advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Sa
     return std::tie(a.t, a.kind, a.track) < std::tie(b.t, b.kind, b.track);
   });
   std::size_t n = 0;
-  while (n < queue_.size() && queue_[n].t <= limit) process(queue_[n++], samus);
+  while (n < queue_.size() && queue_[n].t <= limit) {
+    if (queue_[n].kind != 3) {
+      process(queue_[n++], samus);
+      continue;
+    }
+    std::vector<Event> group;
+    const Event& first = queue_[n];
+    const astro::TimeTT t0 = first.t;
+    const int sender = first.track;
+    while (n < queue_.size() && queue_[n].kind == 3 && queue_[n].t == t0 && queue_[n].track == sender) {
+      group.push_back(queue_[n++]);
+    }
+    process_remote(group);
+  }
   queue_.erase(queue_.begin(), queue_.begin() + static_cast<std::ptrdiff_t>(n));
 }
 

@@ -24,6 +24,17 @@
 // emulator); (2) is applied to the filter as a whole (a sparsely seen target
 // keeps its estimate, as in the paper's SV3 case), and a filter failing (2) or
 // (4) is re-initialised from the next GNSS fix and the a-priori.
+//
+// Navigation mode 3 adds the bearings other observers broadcast over the ISL
+// (paper, "Sequential Orbit Determination"): a remote bearing j is assigned to
+// body k (one of the targets, or this observer itself) when sigma_jk <=
+// eps_assign, sigma_lk >= eps_ambig for every other bearing l of the same
+// sender and epoch, and sigma_jp >= eps_ambig for every other body p, where
+// sigma is the Mahalanobis distance of the innovation; the sender's position
+// is this filter's estimate when the sender is one of its targets, else the
+// sender's broadcast orbit (propagated to the bearing's time) with its
+// covariance in the innovation covariance. A remote orbit is never used as a
+// measurement (the paper's 02/05/24 anomaly, fixed by design).
 #pragma once
 
 #include <Eigen/Geometry>
@@ -93,6 +104,8 @@ class Navigator {
   // other modes count it only).
   void add_remote(const RemoteBroadcast& b);
   [[nodiscard]] std::size_t remote_broadcasts() const { return remote_broadcasts_; }
+  [[nodiscard]] std::size_t remote_assigned() const { return remote_assigned_; }
+  [[nodiscard]] std::size_t remote_unassigned() const { return remote_unassigned_; }
   // A bearing released by SAMUS: time tag, track, unit line of sight (ECI)
   // and the attitude of its frame.
   void add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci,
@@ -125,12 +138,16 @@ class Navigator {
  private:
   struct Event {
     astro::TimeTT t;
-    int kind = 0;  // 0 GNSS, 1 bearing of a SAMUS track, 2 bearing assigned by SOD's prediction
+    int kind = 0;  // 0 GNSS, 1 bearing of a SAMUS track, 2 bearing assigned by SOD's prediction, 3 remote bearing
     sod::GnssMeasurement gnss;
     int track = -1;   // kind 1: SAMUS track; kind 2: target index
     Eigen::Vector3d u_eci = Eigen::Vector3d::Zero();
     Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
     double imp_sigma_rad = 0.0;
+    // kind 3: the sender (index into senders_) and its position estimate at t.
+    astro::Vec3 sender_r_eci_m = astro::Vec3::Zero();
+    astro::Mat3 sender_P_r_m2 = astro::Mat3::Zero();
+    bool sender_position_valid = false;
   };
   struct Association {
     std::vector<double> d2_sum;
@@ -152,10 +169,18 @@ class Navigator {
   std::vector<std::uint32_t> local_;
   std::size_t late_ = 0;
   std::size_t remote_broadcasts_ = 0;
+  bool fuse_remote_ = false;             // navigation mode 3
+  std::vector<std::string> senders_;
+  const dynamics::GveRk4Propagator onboard_;
+  std::size_t remote_assigned_ = 0, remote_unassigned_ = 0, remote_late_ = 0;
   std::vector<std::uint32_t> remote_;
   std::vector<std::string> messages_;
 
   void process(const Event& e, const imp::Samus& samus);
+  // Remote bearings of one sender at one epoch: the paper's three
+  // assignment conditions on the Mahalanobis distances sigma_jk, then the
+  // updates.
+  void process_remote(const std::vector<Event>& group);
   void initialise(const sod::GnssMeasurement& g);
   [[nodiscard]] astro::Roe apriori_at(int k, astro::TimeTT t) const;
   void check_health();

@@ -331,7 +331,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
     config::ObserverUplink up = config::make_uplink(sc, o.spacecraft);
     up.camera_calibration = camera_calibration(o.camera.model);
     up.star_catalog_file = "star_catalog.csv";
-    if (o.mode == 1) add_ground_apriori(sc, o, up);
+    if (o.mode == 1 || o.mode == 3) add_ground_apriori(sc, o, up);
     config::write_uplink(up, (dir / "uplink" / (o.spacecraft + ".json")).string());
   }
   for (const auto& name : services) {
