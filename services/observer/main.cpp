@@ -217,14 +217,17 @@ int run(const runtime::ServiceOptions& opt) {
           while (frame_attitude.size() > 64) frame_attitude.erase(frame_attitude.begin());
           frame_times_ns.push_back(f.time_tag_tt_ns);
           while (frame_times_ns.size() > 64) frame_times_ns.pop_front();
-          // SOD-aided assignment of single detections of untracked targets.
+          const imp::SamusFrameSummary ss = samus->process(in, aided);
+          // SOD-aided assignment of single detections of untracked targets,
+          // among the candidates no SAMUS track took; reported with track id
+          // -2 - k (k: the target's index in the uplinked a-priori).
           if (navigator) {
-            // Reported with track id -2 - k (k: the target's index in the uplinked a-priori).
-            for (const auto& [ci, k] : navigator->assign_untracked(tf, fr.candidates, fr.q_cam_from_eci, in.observer_eci, *samus)) {
+            for (const auto& [ci, k] :
+                 navigator->assign_untracked(tf, fr.candidates, ss.taken, fr.q_cam_from_eci, in.observer_eci, *samus)) {
               add(f.frame_seq, f.time_tag_tt_ns, -2 - k, fr.candidates[static_cast<std::size_t>(ci)]);
             }
           }
-          for (const auto& m : samus->process(in, aided).released) {
+          for (const auto& m : ss.released) {
             const std::int64_t t_ns = static_cast<std::int64_t>(std::llround(m.t_s * 1e9));
             add(static_cast<std::uint32_t>(m.frame), t_ns, m.track_id, m.c);
             const auto qa = frame_attitude.find(static_cast<std::uint32_t>(m.frame));

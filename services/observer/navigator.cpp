@@ -403,35 +403,50 @@ NavReport Navigator::report(astro::TimeTT t) const {
 }
 
 std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
-                                             const Eigen::Quaterniond& q_cam_from_eci,
-                                             const astro::StateVector& observer_eci, const imp::Samus& samus) {
+                                                             const std::vector<int>& taken,
+                                                             const Eigen::Quaterniond& q_cam_from_eci,
+                                                             const astro::StateVector& observer_eci,
+                                                             const imp::Samus& samus) {
   std::vector<std::pair<int, int>> used;
   if (!filter_ || reinit_pending_ || candidates.empty()) return used;
-  std::optional<sod::SodFilter> f;
-  for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+  sod::SodFilter f = *filter_;
+  if (f.epoch() < t && !f.time_update(t).usable) return used;
+  // Every target's prediction and every free candidate's squared Mahalanobis distance to it.
+  const std::size_t K = target_ids_.size(), C = candidates.size();
+  std::vector<bool> have(K, false);
+  Eigen::MatrixXd d2 = Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(C), static_cast<Eigen::Index>(K), 1e12);
+  std::vector<double> width(K, 1e9);
+  for (std::size_t k = 0; k < K; ++k) {
+    imp::TargetPrediction pr;
+    if (!predict_plane(f, static_cast<int>(k), samus, pr)) continue;
+    have[k] = true;
+    width[k] = std::sqrt(pr.cov.trace());
+    for (std::size_t c = 0; c < C; ++c) {
+      Eigen::Vector2d p;
+      if (!samus.plane_coordinates(candidates[c].u_eci, observer_eci, p)) continue;
+      const Eigen::Matrix2d S = pr.cov + std::pow(candidates[c].sigma_rad, 2) * Eigen::Matrix2d::Identity();
+      d2(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(k)) = (p - pr.p).dot(S.ldlt().solve(p - pr.p));
+    }
+  }
+  const double ambig2 = up_.tuning.sod.eps_ambig * up_.tuning.sod.eps_ambig;
+  for (std::size_t k = 0; k < K; ++k) {
+    if (!have[k] || !(width[k] < opt_.direct_max_sigma_rad)) continue;
     bool tracked = false;
     for (const auto& [tid, as] : tracks_) {
       if (as.target == static_cast<int>(k) && astro::seconds_between(as.last, t) < 1800.0) tracked = true;
     }
     if (tracked) continue;
-    if (!f) {
-      f.emplace(*filter_);
-      if (f->epoch() < t && !f->time_update(t).usable) return used;
-    }
-    imp::TargetPrediction pr;
-    if (!predict_plane(*f, static_cast<int>(k), samus, pr)) continue;
-    // A validity region wider than this is left to SAMUS (too much clutter inside).
-    if (!(std::sqrt(pr.cov.trace()) < opt_.direct_max_sigma_rad)) continue;
     int hit = -1, hits = 0;
-    for (std::size_t c = 0; c < candidates.size(); ++c) {
-      Eigen::Vector2d p;
-      if (!samus.plane_coordinates(candidates[c].u_eci, observer_eci, p)) continue;
-      const double s2 = candidates[c].sigma_rad * candidates[c].sigma_rad;
-      const Eigen::Matrix2d S = pr.cov + s2 * Eigen::Matrix2d::Identity();
-      if ((p - pr.p).dot(S.ldlt().solve(p - pr.p)) <= opt_.direct_gate_chi2) {
-        hit = static_cast<int>(c);
-        ++hits;
+    for (std::size_t c = 0; c < C; ++c) {
+      if (std::find(taken.begin(), taken.end(), static_cast<int>(c)) != taken.end()) continue;
+      if (!(d2(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(k)) <= opt_.direct_gate_chi2)) continue;
+      bool ambiguous = false;
+      for (std::size_t p = 0; p < K; ++p) {
+        if (p != k && d2(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(p)) < ambig2) ambiguous = true;
       }
+      if (ambiguous) continue;
+      hit = static_cast<int>(c);
+      ++hits;
     }
     if (hits != 1) continue;
     Event e;

@@ -124,9 +124,12 @@ class Navigator {
   // this frame inside the 99 % validity region of its predicted measurement,
   // if exactly one is, is queued as a bearing of that target. Returns
   // (candidate index, target index) of each assignment.
+  // Candidates a SAMUS track took (`taken`) are skipped, and so is a
+  // candidate that lies within the ambiguity distance (eps_ambig) of another
+  // target's prediction.
   std::vector<std::pair<int, int>> assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
-                                    const Eigen::Quaterniond& q_cam_from_eci, const astro::StateVector& observer_eci,
-                                    const imp::Samus& samus);
+                                    const std::vector<int>& taken, const Eigen::Quaterniond& q_cam_from_eci,
+                                    const astro::StateVector& observer_eci, const imp::Samus& samus);
   // SOD-aided SAMUS: predictions at t for tracks bound to converged targets.
   [[nodiscard]] std::vector<imp::TargetPrediction> predictions(astro::TimeTT t, const imp::Samus& samus) const;
 

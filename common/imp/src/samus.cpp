@@ -403,6 +403,7 @@ SamusFrameSummary Samus::process(const TrackerInput& in, std::span<const TargetP
   for (std::size_t ci = 0; ci < cands.size(); ++ci) {
     if (used[ci]) {
       ++s.assigned;
+      s.taken.push_back(cands[ci].candidate);
     } else {
       unassigned_.push_back({seq_, cands[ci]});
     }

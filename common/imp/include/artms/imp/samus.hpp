@@ -129,6 +129,7 @@ struct TrackInfo {
 struct SamusFrameSummary {
   int candidates = 0;
   int assigned = 0;         // candidates taken by any hypothesis of an active track
+  std::vector<int> taken;   // their indices (into the frame's candidates)
   int tracks_started = 0;
   int tracks_joined = 0;
   int tracks_dropped = 0;   // tentative tracks lost before confirmation
