@@ -34,6 +34,7 @@
 #include "artms/io/oem.hpp"
 #include "artms/runtime/runtime.hpp"
 #include "evaluation.hpp"
+#include "memory.hpp"
 
 namespace {
 
@@ -372,6 +373,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   };
   bool stopping = false;
   Clock::time_point stop_deadline{};
+  swarm::MemorySampler memory;
   for (;;) {
     // Reap children.
     int status = 0;
@@ -408,6 +410,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
     ticks.take_each([&](const artms_msg_ClockTick& t) {
       sim_s = std::max(sim_s, astro::seconds_between(sc.epoch, astro::TimeTT{t.t_tt_ns}));
     });
+    memory.sample(children, sim_s);
     const auto now = Clock::now();
     if (now - last_print > std::chrono::milliseconds(tty ? 200 : 5000)) {
       last_print = now;
@@ -439,7 +442,8 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   const nlohmann::json timing = {{"wall_time_s", wall},
                                  {"sim_time_s", ok ? sc.duration_s : sim_s},
                                  {"real_time_factor", wall > 0 ? (ok ? sc.duration_s : sim_s) / wall : 0.0},
-                                 {"processes", children.size()}};
+                                 {"processes", children.size()},
+                                 {"rss_kb", memory.to_json()}};
   std::ofstream(dir / "timing.json") << timing.dump(2) << "\n";
 
   // Summary table.
