@@ -93,8 +93,8 @@ int run(const runtime::ServiceOptions& opt) {
         "sigma_x_m,sigma_y_m,sigma_z_m,sigma_vx_mps,sigma_vy_mps,sigma_vz_mps,targets,frames_received");
   }
   // IMP telemetry per observer, the columns of artms-imp (DESIGN.md section 7).
-  // Measurements are decided by SAMUS a few frames late: that file is kept
-  // in memory and written sorted by frame time at the end of the run.
+  // Measurements are decided by SAMUS a few frames late: that file is
+  // written sorted by frame time, two simulated hours behind the clock.
   std::map<std::string, std::unique_ptr<SortedSink>> imp_attitude, imp_meas;
   for (const auto& o : sc.observers) {
     fs::create_directories(dir / "imp" / o.spacecraft);
@@ -117,22 +117,21 @@ int run(const runtime::ServiceOptions& opt) {
   SortedSink frames(dir / "frames.csv",
                     "t_utc,t_tt_ns,observer,frame,time_tag_tt_ns,dropped,exclusion,stars,target,x_px,y_px,"
                     "vmag,range_m,visible,reason");
-  std::map<std::string, io::OemSegment> truth;
+  // Truth samples stream to per-object temporary files (flat memory on long runs).
+  io::OemStreamWriter truth((dir / "truth.oem").string(), sc.epoch);
 
   std::size_t rejected = 0;
   const auto utc = [](std::int64_t t) { return astro::utc_string(astro::TimeTT{t}, 3); };
   const auto drain = [&]() {
     truth_reader.take_each([&](const artms_msg_TruthState& m) {
       const std::string id = dds::to_string(m.spacecraft, sizeof m.spacecraft);
-      auto& seg = truth[id];
-      seg.object_name = seg.object_id = id;
-      const astro::TimeTT t{m.t_tt_ns};
-      if (!seg.samples.empty() && !(seg.samples.back().t < t)) {
-        ++rejected;
-        return;
+      try {
+        truth.add(id, {astro::TimeTT{m.t_tt_ns},
+                       {astro::Vec3(m.r_eci_m[0], m.r_eci_m[1], m.r_eci_m[2]),
+                        astro::Vec3(m.v_eci_mps[0], m.v_eci_mps[1], m.v_eci_mps[2])}});
+      } catch (const std::invalid_argument&) {
+        ++rejected;  // not after the previous sample of that object
       }
-      seg.samples.push_back({t, {astro::Vec3(m.r_eci_m[0], m.r_eci_m[1], m.r_eci_m[2]),
-                                 astro::Vec3(m.v_eci_mps[0], m.v_eci_mps[1], m.v_eci_mps[2])}});
     });
     gnss_reader.take_each([&](const artms_msg_GnssFix& f) {
       const std::string id = dds::to_string(f.spacecraft, sizeof f.spacecraft);
@@ -239,9 +238,10 @@ int run(const runtime::ServiceOptions& opt) {
   const auto flush_all = [&](std::int64_t limit) {
     for (auto& [id, sink] : nav) sink->flush(limit);
     for (auto& [id, sink] : imp_attitude) sink->flush(limit);
-    if (limit == std::numeric_limits<std::int64_t>::max()) {
-      for (auto& [id, sink] : imp_meas) sink->flush(limit);
-    }
+    // SAMUS decides a measurement at most an hour or so after its frame
+    // (initiation, confirmation): measurements are written two hours behind.
+    const std::int64_t lagged = limit == std::numeric_limits<std::int64_t>::max() ? limit : limit - 7200LL * 1000000000LL;
+    for (auto& [id, sink] : imp_meas) sink->flush(lagged);
     targets.flush(limit);
     gnss.flush(limit);
     isl.flush(limit);
@@ -250,13 +250,9 @@ int run(const runtime::ServiceOptions& opt) {
     frames.flush(limit);
   };
   const auto write_truth = [&]() {
-    io::OemFile oem;
-    oem.creation = sc.epoch;
-    for (const auto& s : sc.spacecraft) {
-      auto it = truth.find(s.id);
-      if (it != truth.end() && !it->second.samples.empty()) oem.segments.push_back(it->second);
-    }
-    if (!oem.segments.empty()) io::write_oem_file((dir / "truth.oem").string(), oem);
+    std::vector<std::string> order;
+    for (const auto& s : sc.spacecraft) order.push_back(s.id);
+    truth.finish(order);
   };
 
   clock.announce_ready(participant, {}, 60.0);

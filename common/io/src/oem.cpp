@@ -27,11 +27,91 @@ std::string trim(const std::string& s) {
 
 }  // namespace
 
+namespace {
+
+void write_meta(std::ostream& out, const std::string& name, const std::string& id, astro::TimeTT start,
+                astro::TimeTT stop) {
+  out << "\nMETA_START\n";
+  out << "OBJECT_NAME = " << name << "\n";
+  out << "OBJECT_ID = " << id << "\n";
+  out << "CENTER_NAME = EARTH\n";
+  out << "REF_FRAME = EME2000\n";
+  out << "TIME_SYSTEM = UTC\n";
+  out << "START_TIME = " << oem_epoch(start) << "\n";
+  out << "STOP_TIME = " << oem_epoch(stop) << "\n";
+  out << "META_STOP\n\n";
+}
+
+std::string data_line(const OemSample& s) {
+  char line[256];
+  const auto& r = s.x_eci.r_m;
+  const auto& v = s.x_eci.v_mps;
+  std::snprintf(line, sizeof line, "%s %.9f %.9f %.9f %.12f %.12f %.12f\n", oem_epoch(s.t).c_str(), r.x() * 1e-3,
+                r.y() * 1e-3, r.z() * 1e-3, v.x() * 1e-3, v.y() * 1e-3, v.z() * 1e-3);
+  return line;
+}
+
+}  // namespace
+
+struct OemStreamWriter::Part {
+  std::string tmp_path;
+  std::ofstream out;
+  astro::TimeTT first, last;
+  bool any = false;
+};
+
+OemStreamWriter::OemStreamWriter(std::string path, astro::TimeTT creation, std::string originator)
+    : path_(std::move(path)), creation_(creation), originator_(std::move(originator)) {}
+
+OemStreamWriter::~OemStreamWriter() {
+  for (auto& [name, p] : parts_) {
+    p->out.close();
+    std::remove(p->tmp_path.c_str());
+  }
+}
+
+void OemStreamWriter::add(const std::string& object_name, const OemSample& s) {
+  auto& p = parts_[object_name];
+  if (!p) {
+    p = std::make_unique<Part>();
+    p->tmp_path = path_ + "." + object_name + ".part";
+    p->out.open(p->tmp_path);
+    if (!p->out) throw std::runtime_error("cannot write " + p->tmp_path);
+  }
+  if (p->any && !(p->last < s.t)) {
+    throw std::invalid_argument("OemStreamWriter: sample times of " + object_name + " are not strictly increasing");
+  }
+  if (!p->any) p->first = s.t;
+  p->any = true;
+  p->last = s.t;
+  p->out << data_line(s);
+}
+
+void OemStreamWriter::finish(const std::vector<std::string>& object_order) {
+  bool any = false;
+  for (const auto& n : object_order) any = any || (parts_.count(n) && parts_.at(n)->any);
+  if (!any) return;
+  std::ofstream out(path_);
+  if (!out) throw std::runtime_error("cannot write OEM file " + path_);
+  out << "CCSDS_OEM_VERS = 2.0\n";
+  out << "CREATION_DATE = " << oem_epoch(creation_) << "\n";
+  out << "ORIGINATOR = " << originator_ << "\n";
+  for (const auto& n : object_order) {
+    auto it = parts_.find(n);
+    if (it == parts_.end() || !it->second->any) continue;
+    auto& p = *it->second;
+    p.out.close();
+    write_meta(out, n, n, p.first, p.last);
+    std::ifstream in(p.tmp_path);
+    out << in.rdbuf();
+  }
+  if (!out) throw std::runtime_error("error while writing OEM file " + path_);
+}
+
 void write_oem(std::ostream& out, const OemFile& oem) {
   out << "CCSDS_OEM_VERS = 2.0\n";
   out << "CREATION_DATE = " << oem_epoch(oem.creation) << "\n";
   out << "ORIGINATOR = " << oem.originator << "\n";
-  char line[256];
   for (const OemSegment& seg : oem.segments) {
     if (seg.samples.empty()) {
       throw std::invalid_argument("write_oem: segment for " + seg.object_name + " has no samples");
@@ -42,23 +122,8 @@ void write_oem(std::ostream& out, const OemFile& oem) {
                                     " are not strictly increasing");
       }
     }
-    out << "\nMETA_START\n";
-    out << "OBJECT_NAME = " << seg.object_name << "\n";
-    out << "OBJECT_ID = " << seg.object_id << "\n";
-    out << "CENTER_NAME = EARTH\n";
-    out << "REF_FRAME = EME2000\n";
-    out << "TIME_SYSTEM = UTC\n";
-    out << "START_TIME = " << oem_epoch(seg.samples.front().t) << "\n";
-    out << "STOP_TIME = " << oem_epoch(seg.samples.back().t) << "\n";
-    out << "META_STOP\n\n";
-    for (const OemSample& s : seg.samples) {
-      const auto& r = s.x_eci.r_m;
-      const auto& v = s.x_eci.v_mps;
-      std::snprintf(line, sizeof line, "%s %.9f %.9f %.9f %.12f %.12f %.12f\n",
-                    oem_epoch(s.t).c_str(), r.x() * 1e-3, r.y() * 1e-3, r.z() * 1e-3,
-                    v.x() * 1e-3, v.y() * 1e-3, v.z() * 1e-3);
-      out << line;
-    }
+    write_meta(out, seg.object_name, seg.object_id, seg.samples.front().t, seg.samples.back().t);
+    for (const OemSample& s : seg.samples) out << data_line(s);
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <sstream>
 
 namespace artms::io {
@@ -70,6 +71,31 @@ TEST(Oem, WriterRejectsNonIncreasingTimes) {
   f.segments[0].samples[2].t = f.segments[0].samples[1].t;
   std::stringstream ss;
   EXPECT_THROW(write_oem(ss, f), std::invalid_argument);
+}
+
+TEST(Oem, StreamWriterWritesWhatWriteOemWrites) {
+  // Two objects with interleaved samples (as a recorder receives them).
+  OemFile f = sample_file();
+  OemSegment second{"SV2", "SV2", {}};
+  for (const auto& s : f.segments[0].samples) second.samples.push_back({s.t, {s.x_eci.r_m * 1.01, s.x_eci.v_mps}});
+  f.segments.push_back(second);
+  std::stringstream expected;
+  write_oem(expected, f);
+  const std::string path = ::testing::TempDir() + "/stream.oem";
+  {
+    OemStreamWriter w(path, f.creation);
+    for (std::size_t k = 0; k < f.segments[0].samples.size(); ++k) {
+      w.add("SV2", f.segments[1].samples[k]);
+      w.add("SV4", f.segments[0].samples[k]);
+    }
+    EXPECT_THROW(w.add("SV4", f.segments[0].samples[0]), std::invalid_argument);
+    w.finish({"SV4", "SV2", "SV9"});
+  }
+  std::ifstream in(path);
+  std::stringstream got;
+  got << in.rdbuf();
+  EXPECT_EQ(got.str(), expected.str());
+  EXPECT_FALSE(std::ifstream(path + ".SV4.part").good());  // temporary files removed
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <iosfwd>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -34,6 +36,29 @@ struct OemFile {
 // Writes KVN with CENTER_NAME = EARTH, REF_FRAME = EME2000, TIME_SYSTEM = UTC.
 // Throws std::invalid_argument for an empty segment or non-increasing times.
 void write_oem(std::ostream& out, const OemFile& oem);
+
+// Writes an OEM file of several objects without holding the samples in
+// memory (long runs): samples go to one temporary file per object next to
+// `path` (strictly increasing times per object, else std::invalid_argument),
+// and finish() writes the same text write_oem would, segments in the order
+// given, then removes the temporary files.
+class OemStreamWriter {
+ public:
+  OemStreamWriter(std::string path, astro::TimeTT creation, std::string originator = "ARTMS-EMULATOR");
+  ~OemStreamWriter();
+  OemStreamWriter(const OemStreamWriter&) = delete;
+  OemStreamWriter& operator=(const OemStreamWriter&) = delete;
+  void add(const std::string& object_name, const OemSample& s);
+  // Objects without samples are skipped; nothing is written if none has any.
+  void finish(const std::vector<std::string>& object_order);
+
+ private:
+  struct Part;
+  std::string path_;
+  astro::TimeTT creation_;
+  std::string originator_;
+  std::map<std::string, std::unique_ptr<Part>> parts_;
+};
 void write_oem_file(const std::string& path, const OemFile& oem);
 
 // Parses KVN OEM 2.0 (header, META blocks, data lines; COMMENT lines and
