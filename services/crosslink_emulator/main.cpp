@@ -213,6 +213,7 @@ int run(const runtime::ServiceOptions& opt) {
       const bool lost = std::uniform_real_distribution<double>(0.0, 1.0)(l.rng) < sc.crosslink.loss_probability;
       artms_msg_IslBroadcast relay = *p.msg;
       dds::copy_string(relay.receiver, sizeof relay.receiver, l.to);
+      relay.t_relayed_tt_ns = t.ns_since_j2000;
       relay.measurements._buffer = p.meas.data();
       relay.measurements._length = relay.measurements._maximum = static_cast<std::uint32_t>(p.meas.size());
       relay.measurements._release = false;

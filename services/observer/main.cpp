@@ -24,6 +24,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 namespace {
 
@@ -140,6 +141,14 @@ int run(const runtime::ServiceOptions& opt) {
   std::optional<astro::TimeTT> last_broadcast;
   std::uint32_t isl_sent = 0, isl_received = 0, isl_rejected = 0;
   std::map<std::string, std::uint32_t> isl_received_from;
+  struct IslIn {
+    std::int64_t t_relayed_ns = 0;
+    std::string sender;
+    std::uint32_t seq = 0;
+    observer::RemoteBroadcast rb;
+    std::string why;  // non-empty: rejected
+  };
+  std::vector<IslIn> isl_in;  // taken, waiting for a later step
   const auto isl_keep = [&](std::int64_t t_ns, int track, const Eigen::Vector3d& u_eci, double sigma_rad) {
     if (track == -1) return;  // untracked candidate: not a measurement
     artms_msg_BearingMeasurement b{};
@@ -218,20 +227,35 @@ int run(const runtime::ServiceOptions& opt) {
       if (!last_fix || last_fix->t <= fix.t) last_fix = fix;
       if (navigator) navigator->add_gnss({fix.t, fix.x, fix.sigma_r, fix.sigma_v});
     });
-    // Relayed ISL broadcasts of the other observers.
+    // Relayed ISL broadcasts of the other observers. A relay written by the
+    // emulator during this step may or may not be here yet (services are not
+    // ordered within a step): only those relayed at earlier steps are
+    // consumed, in (relay time, sender, sequence) order, the rest wait.
     relay_reader.take_each([&](const artms_msg_IslBroadcast& b) {
-      observer::RemoteBroadcast rb;
-      const std::string why = isl_check(b, rb);
-      if (!why.empty()) {
+      IslIn in;
+      in.t_relayed_ns = b.t_relayed_tt_ns;
+      in.seq = b.broadcast_seq;
+      in.why = isl_check(b, in.rb);
+      in.sender = dds::to_string(b.sender, sizeof b.sender);
+      isl_in.push_back(std::move(in));
+    });
+    std::stable_sort(isl_in.begin(), isl_in.end(), [](const IslIn& x, const IslIn& y) {
+      return std::tie(x.t_relayed_ns, x.sender, x.seq) < std::tie(y.t_relayed_ns, y.sender, y.seq);
+    });
+    std::size_t n_isl = 0;
+    for (; n_isl < isl_in.size() && isl_in[n_isl].t_relayed_ns < t.ns_since_j2000; ++n_isl) {
+      const IslIn& in = isl_in[n_isl];
+      if (!in.why.empty()) {
         ++isl_rejected;
-        events.warning(t.ns_since_j2000, "rejected an ISL broadcast from '" + dds::to_string(b.sender, sizeof b.sender) +
-                                             "': " + why + " (" + std::to_string(isl_rejected) + " so far)");
-        return;
+        events.warning(t.ns_since_j2000, "rejected an ISL broadcast from '" + in.sender + "': " + in.why + " (" +
+                                             std::to_string(isl_rejected) + " so far)");
+        continue;
       }
       ++isl_received;
-      ++isl_received_from[rb.sender];
-      if (navigator) navigator->add_remote(rb);
-    });
+      ++isl_received_from[in.rb.sender];
+      if (navigator) navigator->add_remote(in.rb);
+    }
+    isl_in.erase(isl_in.begin(), isl_in.begin() + static_cast<std::ptrdiff_t>(n_isl));
     // Camera frames: checked, then IMP (frame processing, SAMUS tracking with
     // the coarse orbit from the latest GNSS fix); the decided measurements
     // go out as IMP telemetry.
