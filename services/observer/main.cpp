@@ -4,6 +4,7 @@
 // with the GNSS-only baseline (navigation mode 0): its own
 // absolute orbit from GNSS fixes, propagated between fixes with the onboard
 // GVE/RK4 model. It never reads truth: it subscribes to its GNSS fixes only.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -23,6 +24,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 namespace {
 
@@ -77,6 +79,10 @@ int run(const runtime::ServiceOptions& opt) {
   dds::Writer<artms_msg_NavTelemetry> nav_writer(participant, topics.nav_telemetry, runtime::data_qos());
   runtime::EventLog events(participant, topics, opt.name);
   dds::Writer<artms_msg_ImpReport> imp_writer(participant, topics.imp_report, runtime::data_qos());
+  // Inter-satellite link: broadcasts go to the crosslink emulator (partition
+  // isl-tx); what it relays to this observer arrives in isl-<sender>-<me>.
+  dds::Writer<artms_msg_IslBroadcast> isl_writer(participant, topics.isl_broadcast, runtime::isl_tx_qos());
+  dds::Reader<artms_msg_IslBroadcast> relay_reader(participant, topics.isl_relay, runtime::isl_relay_reader_qos(me));
   // IMP (paper, "Image Processing"): the uplinked sensor calibration and star
   // catalog, SAMUS tuned by the uplinked telecommands.
   std::optional<imp::StarIdCatalog> catalog;
@@ -122,10 +128,75 @@ int run(const runtime::ServiceOptions& opt) {
                         {"event writer", events.writer().handle(), true, rt.at("event")},
                         {"imp_report writer", imp_writer.handle(), true, rt.at("imp_report")},
                         {"gnss_fix reader", gnss_reader.handle(), false, cfg->gnss.enabled ? 1 : 0},
-                        {"camera_frame reader", frame_reader.handle(), false, 1}},
+                        {"camera_frame reader", frame_reader.handle(), false, 1},
+                        // The emulator reads every broadcast; relay writers
+                        // match only while their link is up (the emulator
+                        // waits for those), so none is required here.
+                        {"isl_broadcast writer", isl_writer.handle(), true, 1}},
                        60.0);
 
   std::optional<Fix> last_fix;
+  // ISL: bearings decided since the last broadcast, counters.
+  std::vector<artms_msg_BearingMeasurement> isl_bearings;
+  std::optional<astro::TimeTT> last_broadcast;
+  std::uint32_t isl_sent = 0, isl_received = 0, isl_rejected = 0;
+  std::map<std::string, std::uint32_t> isl_received_from;
+  struct IslIn {
+    std::int64_t t_relayed_ns = 0;
+    std::string sender;
+    std::uint32_t seq = 0;
+    observer::RemoteBroadcast rb;
+    std::string why;  // non-empty: rejected
+  };
+  std::vector<IslIn> isl_in;  // taken, waiting for a later step
+  const auto isl_keep = [&](std::int64_t t_ns, int track, const Eigen::Vector3d& u_eci, double sigma_rad) {
+    if (track == -1) return;  // untracked candidate: not a measurement
+    artms_msg_BearingMeasurement b{};
+    b.t_tt_ns = t_ns;
+    const std::string label = track >= 0 ? me + "-" + std::to_string(track) : me + "-target-" + std::to_string(-2 - track);
+    dds::copy_string(b.track, sizeof b.track, label);
+    for (int i = 0; i < 3; ++i) b.u_eci[i] = u_eci[i];
+    b.sigma_rad = sigma_rad;
+    isl_bearings.push_back(b);
+  };
+  // A relayed broadcast: checked, then handed to the navigator.
+  const auto isl_check = [&](const artms_msg_IslBroadcast& b, observer::RemoteBroadcast& rb) -> std::string {
+    rb.sender = dds::to_string(b.sender, sizeof b.sender);
+    if (rb.sender == me || std::find(up.swarm_ids.begin(), up.swarm_ids.end(), rb.sender) == up.swarm_ids.end()) {
+      return "unknown sender '" + rb.sender + "'";
+    }
+    if (dds::to_string(b.receiver, sizeof b.receiver) != me) return "addressed to another receiver";
+    if (b.source > 3) return "unknown orbit source " + std::to_string(b.source);
+    rb.t = astro::TimeTT{b.t_tt_ns};
+    rb.source = b.source;
+    rb.reinitialising = b.reinitialising;
+    for (int i = 0; i < 3; ++i) {
+      rb.x_eci.r_m[i] = b.r_eci_m[i];
+      rb.x_eci.v_mps[i] = b.v_eci_mps[i];
+    }
+    for (int i = 0; i < 36; ++i) rb.P_rv.data()[i] = b.covariance_rv[i];
+    if (!rb.x_eci.r_m.allFinite() || !rb.x_eci.v_mps.allFinite() || !rb.P_rv.allFinite()) return "non-finite orbit or covariance";
+    if (b.source != 0) {
+      if (!(rb.x_eci.r_m.norm() > 6.4e6)) return "orbit below the Earth's surface";
+      bool pos_diag = true;
+      for (int i = 0; i < 6; ++i) pos_diag = pos_diag && rb.P_rv(i, i) > 0.0;
+      if (!pos_diag) return "empty covariance";
+    }
+    for (std::uint32_t k = 0; k < b.measurements._length; ++k) {
+      const auto& m = b.measurements._buffer[k];
+      observer::RemoteBearing r;
+      r.t = astro::TimeTT{m.t_tt_ns};
+      r.track = dds::to_string(m.track, sizeof m.track);
+      r.u_eci = Eigen::Vector3d(m.u_eci[0], m.u_eci[1], m.u_eci[2]);
+      r.sigma_rad = m.sigma_rad;
+      if (!r.u_eci.allFinite() || std::abs(r.u_eci.norm() - 1.0) > 1e-6 || !std::isfinite(r.sigma_rad) ||
+          !(r.sigma_rad > 0.0) || r.track.empty()) {
+        return "invalid bearing " + std::to_string(k);
+      }
+      rb.bearings.push_back(std::move(r));
+    }
+    return "";
+  };
   std::uint32_t frames_received = 0;
   std::size_t frames_rejected = 0;
   std::size_t rejected = 0;
@@ -156,6 +227,35 @@ int run(const runtime::ServiceOptions& opt) {
       if (!last_fix || last_fix->t <= fix.t) last_fix = fix;
       if (navigator) navigator->add_gnss({fix.t, fix.x, fix.sigma_r, fix.sigma_v});
     });
+    // Relayed ISL broadcasts of the other observers. A relay written by the
+    // emulator during this step may or may not be here yet (services are not
+    // ordered within a step): only those relayed at earlier steps are
+    // consumed, in (relay time, sender, sequence) order, the rest wait.
+    relay_reader.take_each([&](const artms_msg_IslBroadcast& b) {
+      IslIn in;
+      in.t_relayed_ns = b.t_relayed_tt_ns;
+      in.seq = b.broadcast_seq;
+      in.why = isl_check(b, in.rb);
+      in.sender = dds::to_string(b.sender, sizeof b.sender);
+      isl_in.push_back(std::move(in));
+    });
+    std::stable_sort(isl_in.begin(), isl_in.end(), [](const IslIn& x, const IslIn& y) {
+      return std::tie(x.t_relayed_ns, x.sender, x.seq) < std::tie(y.t_relayed_ns, y.sender, y.seq);
+    });
+    std::size_t n_isl = 0;
+    for (; n_isl < isl_in.size() && isl_in[n_isl].t_relayed_ns < t.ns_since_j2000; ++n_isl) {
+      const IslIn& in = isl_in[n_isl];
+      if (!in.why.empty()) {
+        ++isl_rejected;
+        events.warning(t.ns_since_j2000, "rejected an ISL broadcast from '" + in.sender + "': " + in.why + " (" +
+                                             std::to_string(isl_rejected) + " so far)");
+        continue;
+      }
+      ++isl_received;
+      ++isl_received_from[in.rb.sender];
+      if (navigator) navigator->add_remote(in.rb);
+    }
+    isl_in.erase(isl_in.begin(), isl_in.begin() + static_cast<std::ptrdiff_t>(n_isl));
     // Camera frames: checked, then IMP (frame processing, SAMUS tracking with
     // the coarse orbit from the latest GNSS fix); the decided measurements
     // go out as IMP telemetry.
@@ -198,6 +298,7 @@ int run(const runtime::ServiceOptions& opt) {
         m.el_rad = b.el_rad;
         m.sigma_rad = c.sigma_rad;
         out.push_back(m);
+        isl_keep(t_ns, track, c.u_eci, c.sigma_rad);
       };
       if (fr.attitude_usable) {
         const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
@@ -348,14 +449,46 @@ int run(const runtime::ServiceOptions& opt) {
         nav.health = 2;  // no solution yet
         nav.source = 0;
       }
+      // ISL broadcast every crosslink period (not at the last navigation
+      // step: the run ends before anybody could receive it): the orbit just
+      // reported and the bearings decided since the previous broadcast.
+      if (!last_step && (!last_broadcast || astro::seconds_between(*last_broadcast, t) >= up.isl_period_s - 1e-6)) {
+        last_broadcast = t;
+        artms_msg_IslBroadcast b{};
+        dds::copy_string(b.sender, sizeof b.sender, me);
+        b.t_tt_ns = t.ns_since_j2000;
+        b.broadcast_seq = isl_sent;
+        for (int i = 0; i < 3; ++i) {
+          b.r_eci_m[i] = nav.r_eci_m[i];
+          b.v_eci_mps[i] = nav.v_eci_mps[i];
+        }
+        for (int i = 0; i < 36; ++i) b.covariance_rv[i] = nav.covariance_rv[i];
+        b.source = nav.source;  // 1 SOD, 2 GNSS fallback, 0 none
+        b.reinitialising = nav.health == 1;
+        b.measurements._buffer = isl_bearings.data();
+        b.measurements._length = b.measurements._maximum = static_cast<std::uint32_t>(isl_bearings.size());
+        b.measurements._release = false;
+        isl_writer.write(b);
+        ++isl_sent;
+        isl_bearings.clear();
+      }
+      nav.isl_sent = isl_sent;
+      nav.isl_received = isl_received;
+      nav.isl_rejected = isl_rejected;
       nav_writer.write(nav);
     }
     for (dds::Entity* w : {static_cast<dds::Entity*>(&nav_writer), static_cast<dds::Entity*>(&events.writer()),
-                           static_cast<dds::Entity*>(&imp_writer)}) {
+                           static_cast<dds::Entity*>(&imp_writer), static_cast<dds::Entity*>(&isl_writer)}) {
       dds::detail::wait_for_acks(w->handle(), opt.step_timeout_s);
     }
     clock.done(tick->step);
-    if (tick->final_step) return 0;
+    if (tick->final_step) {
+      std::string from;
+      for (const auto& [s, n] : isl_received_from) from += " " + s + ":" + std::to_string(n);
+      std::fprintf(stderr, "[%s] ISL: %u broadcasts sent, %u received (%s ), %u rejected\n", opt.name.c_str(), isl_sent,
+                   isl_received, from.c_str(), isl_rejected);
+      return 0;
+    }
   }
   if (clock.timed_out()) {
     std::fprintf(stderr, "[%s] error: no clock tick within %.0f s (is truth running?)\n",

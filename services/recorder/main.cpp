@@ -81,7 +81,7 @@ int run(const runtime::ServiceOptions& opt) {
   dds::Reader<artms_msg_NavTelemetry> nav_reader(participant, topics.nav_telemetry, q);
   dds::Reader<artms_msg_Event> event_reader(participant, topics.event, q);
   dds::Reader<artms_msg_LinkState> link_reader(participant, topics.link_state, q);
-  dds::Reader<artms_msg_IslBroadcast> isl_reader(participant, topics.isl_broadcast, q);
+  dds::Reader<artms_msg_IslOutcome> isl_reader(participant, topics.isl_outcome, q);
   dds::Reader<artms_msg_FrameTruth> frame_truth_reader(participant, topics.frame_truth, q);
   dds::Reader<artms_msg_ImpReport> imp_reader(participant, topics.imp_report, q);
 
@@ -90,7 +90,7 @@ int run(const runtime::ServiceOptions& opt) {
     nav[o.spacecraft] = std::make_unique<SortedSink>(
         dir / "nav" / (o.spacecraft + ".csv"),
         "t_utc,t_tt_ns,mode,health,source,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,"
-        "sigma_x_m,sigma_y_m,sigma_z_m,sigma_vx_mps,sigma_vy_mps,sigma_vz_mps,targets,frames_received");
+        "sigma_x_m,sigma_y_m,sigma_z_m,sigma_vx_mps,sigma_vy_mps,sigma_vz_mps,targets,frames_received,isl_sent,isl_received,isl_rejected");
   }
   // IMP telemetry per observer, the columns of artms-imp (DESIGN.md section 7).
   // Measurements are decided by SAMUS a few frames late: that file is
@@ -111,7 +111,9 @@ int run(const runtime::ServiceOptions& opt) {
                      "sigma_da,sigma_dlambda,sigma_dex,sigma_dey,sigma_dix,sigma_diy,"
                      "local_measurements,remote_measurements,covariance_upper");
   SortedSink gnss(dir / "gnss.csv", "t_utc,t_tt_ns,spacecraft,valid,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps");
-  SortedSink isl(dir / "isl.csv", "t_utc,t_tt_ns,sender,sequence,source,measurements");
+  // One row per (broadcast, directed link): the crosslink emulator's outcome.
+  SortedSink isl(dir / "isl.csv",
+                 "t_utc,t_tt_ns,sender,receiver,sequence,t_sent_tt_ns,source,measurements,range_m,status,reason");
   SortedSink links(dir / "links.csv", "t_utc,t_tt_ns,from,to,up,reason");
   SortedSink events(dir / "events.log", "");
   SortedSink frames(dir / "frames.csv",
@@ -150,11 +152,11 @@ int run(const runtime::ServiceOptions& opt) {
       const auto sd = [&](int i) { return std::sqrt(std::max(0.0, m.covariance_rv[i * 6 + i])); };
       it->second->add(
           m.t_tt_ns, id,
-          fmt("%s,%lld,%d,%d,%d,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%u,%u",
+          fmt("%s,%lld,%d,%d,%d,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%u,%u,%u,%u,%u",
               utc(m.t_tt_ns).c_str(), static_cast<long long>(m.t_tt_ns), m.mode, m.health, m.source,
               m.r_eci_m[0], m.r_eci_m[1], m.r_eci_m[2], m.v_eci_mps[0], m.v_eci_mps[1],
               m.v_eci_mps[2], sd(0), sd(1), sd(2), sd(3), sd(4), sd(5), m.targets._length,
-              m.frames_received));
+              m.frames_received, m.isl_sent, m.isl_received, m.isl_rejected));
       for (std::uint32_t k = 0; k < m.targets._length; ++k) {
         const auto& e = m.targets._buffer[k];
         std::string line = fmt("%s,%lld,%s,%s", utc(m.t_tt_ns).c_str(),
@@ -228,11 +230,13 @@ int run(const runtime::ServiceOptions& opt) {
                               m.u_eci[1], m.u_eci[2], m.az_rad, m.el_rad, m.sigma_rad));
       }
     });
-    isl_reader.take_each([&](const artms_msg_IslBroadcast& b) {
-      const std::string s = dds::to_string(b.sender, sizeof b.sender);
-      isl.add(b.t_tt_ns, s,
-              fmt("%s,%lld,%s,%u,%d,%u", utc(b.t_tt_ns).c_str(), static_cast<long long>(b.t_tt_ns),
-                  s.c_str(), b.broadcast_seq, b.source, b.measurements._length));
+    isl_reader.take_each([&](const artms_msg_IslOutcome& o) {
+      // One writer (the emulator): its order is kept for equal times.
+      isl.add(o.t_tt_ns, "crosslink",
+              fmt("%s,%lld,%s,%s,%u,%lld,%d,%u,%.1f,%s,%s", utc(o.t_tt_ns).c_str(), static_cast<long long>(o.t_tt_ns),
+                  dds::to_string(o.sender, sizeof o.sender).c_str(), dds::to_string(o.receiver, sizeof o.receiver).c_str(),
+                  o.broadcast_seq, static_cast<long long>(o.t_sent_tt_ns), o.source, o.measurements, o.range_m,
+                  o.delivered ? "delivered" : "dropped", dds::to_string(o.reason, sizeof o.reason).c_str()));
     });
   };
   const auto flush_all = [&](std::int64_t limit) {

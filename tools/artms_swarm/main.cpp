@@ -159,6 +159,15 @@ std::string hms(double s) {
   return buf;
 }
 
+// One CSV line split on commas (the run folder's files have no quoting).
+std::vector<std::string> split_csv(const std::string& line) {
+  std::vector<std::string> cols;
+  std::stringstream ss(line);
+  std::string c;
+  while (std::getline(ss, c, ',')) cols.push_back(c);
+  return cols;
+}
+
 // Last data row of a CSV (header skipped), split on commas.
 std::vector<std::string> last_row(const fs::path& path) {
   std::ifstream in(path);
@@ -167,11 +176,7 @@ std::vector<std::string> last_row(const fs::path& path) {
   while (std::getline(in, line)) {
     if (!line.empty()) last = line;
   }
-  std::vector<std::string> cols;
-  std::stringstream ss(last);
-  std::string c;
-  while (std::getline(ss, c, ',')) cols.push_back(c);
-  return cols;
+  return split_csv(last);
 }
 
 nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
@@ -218,10 +223,7 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
     std::string line;
     std::getline(in, line);
     while (std::getline(in, line)) {
-      std::vector<std::string> c;
-      std::stringstream ss(line);
-      std::string x;
-      while (std::getline(ss, x, ',')) c.push_back(x);
+      const std::vector<std::string> c = split_csv(line);
       if (c.size() < 7) continue;
       seen[c[2]][c[3]] = {c[5] == "1", c[6] != "none"};
     }
@@ -243,15 +245,44 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
                                    {"dropout_rate", scheduled > 0 ? static_cast<double>(dropped) / static_cast<double>(scheduled) : 0.0}};
     }
   }
-  // Crosslink accounting (the emulator arrives with the crosslink issue).
-  long sent = -1;
+  // Crosslink accounting: isl.csv holds one row per (broadcast, directed
+  // link) with its outcome (delivered, or dropped with a reason), so that
+  // per link sent = delivered + dropped holds by construction.
   {
+    const std::vector<std::string> reasons = {"outage", "loss", "range", "disabled", "end_of_run", "no_receiver"};
+    const auto zero = [&]() {
+      nlohmann::json d = nlohmann::json::object();
+      for (const auto& r : reasons) d[r] = 0;
+      return nlohmann::json{{"sent", 0}, {"delivered", 0}, {"dropped", d}};
+    };
+    nlohmann::json total = zero();
+    nlohmann::json per_link = nlohmann::json::object();
+    for (const auto& a : sc.observers) {
+      for (const auto& b : sc.observers) {
+        if (a.spacecraft != b.spacecraft) per_link[a.spacecraft + "->" + b.spacecraft] = zero();
+      }
+    }
     std::ifstream in(dir / "isl.csv");
     std::string line;
-    while (std::getline(in, line)) ++sent;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      const std::vector<std::string> c = split_csv(line);
+      if (c.size() < 11) continue;
+      const std::string key = c[2] + "->" + c[3];
+      if (!per_link.contains(key)) per_link[key] = zero();
+      for (nlohmann::json* acc : {&total, &per_link[key]}) {
+        (*acc)["sent"] = (*acc)["sent"].get<long>() + 1;
+        if (c[9] == "delivered") {
+          (*acc)["delivered"] = (*acc)["delivered"].get<long>() + 1;
+        } else {
+          auto& d = (*acc)["dropped"];
+          d[c[10]] = d.value(c[10], 0L) + 1;
+        }
+      }
+    }
+    total["per_link"] = per_link;
+    j["isl"] = total;
   }
-  j["isl"] = {{"sent", std::max(0L, sent)}, {"delivered", 0},
-              {"dropped", {{"outage", 0}, {"loss", 0}, {"range", 0}}}};
   return j;
 }
 

@@ -108,6 +108,24 @@ dds_entity_t create_reader(const Participant& p, const Topic& t, const QosProfil
   return checked(r, "dds_create_reader");
 }
 
+dds_entity_t repartition_writer(dds_entity_t writer, const Participant& p, const Topic& t, const QosProfile& q) {
+  const dds_entity_t pub = dds_get_parent(writer);
+  if (pub > 0 && pub != p.handle()) {
+    dds_qos_t* gq = dds_create_qos();
+    std::vector<const char*> names;
+    for (const auto& s : q.partitions) names.push_back(s.c_str());
+    dds_qset_partition(gq, static_cast<uint32_t>(names.size()), names.data());
+    const dds_return_t rc = dds_set_qos(pub, gq);
+    dds_delete_qos(gq);
+    if (rc == DDS_RETCODE_OK) return writer;
+    if (rc != DDS_RETCODE_UNSUPPORTED && rc != DDS_RETCODE_IMMUTABLE_POLICY) throw DdsError("dds_set_qos(partition)", rc);
+    dds_delete(pub);  // deletes the writer with it
+  } else if (writer > 0) {
+    dds_delete(writer);
+  }
+  return create_writer(p, t, q);
+}
+
 void write(dds_entity_t writer, const void* sample) {
   const dds_return_t rc = dds_write(writer, sample);
   if (rc != DDS_RETCODE_OK) throw DdsError("dds_write", rc);

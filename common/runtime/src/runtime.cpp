@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -36,13 +37,44 @@ TopicSet::TopicSet(const dds::Participant& p)
       nav_telemetry(p, &artms_msg_NavTelemetry_desc, "artms_nav_telemetry"),
       link_state(p, &artms_msg_LinkState_desc, "artms_link_state"),
       event(p, &artms_msg_Event_desc, "artms_event"),
-      imp_report(p, &artms_msg_ImpReport_desc, "artms_imp_report") {}
+      imp_report(p, &artms_msg_ImpReport_desc, "artms_imp_report"),
+      isl_relay(p, &artms_msg_IslBroadcast_desc, "artms_isl_relay"),
+      isl_outcome(p, &artms_msg_IslOutcome_desc, "artms_isl_outcome") {}
 
 dds::QosProfile clock_qos() { return {true, true, 1, 0, {}}; }
 dds::QosProfile step_done_qos() { return {true, true, 1, 0, {}}; }
 dds::QosProfile data_qos() { return {true, false, 0, 0, {}}; }
 dds::QosProfile frame_qos(const std::string& observer) {
   return {true, false, 4, 0, {"frames-" + observer}};
+}
+
+dds::QosProfile isl_tx_qos() { return {true, false, 0, 0, {"isl-tx"}}; }
+dds::QosProfile isl_relay_writer_qos(const std::string& from, const std::string& to, bool up, double lifespan_s) {
+  return {true, false, 0, static_cast<std::int64_t>(std::llround(lifespan_s * 1e9)),
+          {up ? "isl-" + from + "-" + to : std::string("isl-down")}};
+}
+dds::QosProfile isl_relay_reader_qos(const std::string& me) { return {true, false, 0, 0, {"isl-*-" + me}}; }
+
+std::string isl_link_down_reason(const config::Scenario& s, const std::string& from, const std::string& to,
+                                 astro::TimeTT t, double range_m) {
+  if (!s.crosslink.enabled) return "disabled";
+  for (const auto& o : s.crosslink.outages) {
+    const bool f = o.from == "*" || o.from == from;
+    const bool r = o.to == "*" || o.to == to;
+    if (f && r && !(t < o.window.start) && t < o.window.end) return "outage";
+  }
+  if (range_m > s.crosslink.max_range_m) return "range";
+  return "";
+}
+
+std::vector<std::pair<std::string, std::string>> isl_links(const config::Scenario& s) {
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const auto& a : s.observers) {
+    for (const auto& b : s.observers) {
+      if (a.spacecraft != b.spacecraft) out.emplace_back(a.spacecraft, b.spacecraft);
+    }
+  }
+  return out;
 }
 
 Topology topology(const config::Scenario& s) {
@@ -61,7 +93,13 @@ Topology topology(const config::Scenario& s) {
       {"imp_report", 1},                // recorder
       {"link_state", 1},                // recorder
       {"event", 1},                     // recorder
+      {"isl_broadcast", 1},             // crosslink emulator (partition isl-tx)
+      {"isl_outcome", 1},               // recorder
   };
+  for (const auto& [from, to] : isl_links(s)) {
+    const double range = (s.initial_state_eci(from).r_m - s.initial_state_eci(to).r_m).norm();
+    t.isl_relay_readers[from + "->" + to] = isl_link_down_reason(s, from, to, s.epoch, range).empty() ? 1 : 0;
+  }
   return t;
 }
 

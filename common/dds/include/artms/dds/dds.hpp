@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace artms::dds {
@@ -47,6 +48,11 @@ class Entity {
   Entity& operator=(Entity&& other) noexcept;
   [[nodiscard]] dds_entity_t handle() const { return handle_; }
 
+ protected:
+  // Gives up ownership without deleting (the caller deleted it another way).
+  dds_entity_t release() { return std::exchange(handle_, 0); }
+  void adopt(dds_entity_t h) { handle_ = h; }
+
  private:
   dds_entity_t handle_ = 0;
 };
@@ -65,6 +71,14 @@ namespace detail {
 dds_entity_t create_writer(const Participant& p, const Topic& t, const QosProfile& q);
 dds_entity_t create_reader(const Participant& p, const Topic& t, const QosProfile& q);
 void write(dds_entity_t writer, const void* sample);
+// Moves a writer into the partitions of q. Tries dds_set_qos on its
+// publisher (the partition policy is changeable in the DDS specification);
+// Cyclone DDS 0.10 answers UNSUPPORTED for an enabled publisher, so then the
+// publisher (and with it the writer) is deleted and a writer with the same
+// QoS is created in a new publisher with the new partitions: the matches of
+// the old writer disappear, the new one matches the readers of its
+// partitions. Returns the writer's (possibly new) handle.
+dds_entity_t repartition_writer(dds_entity_t writer, const Participant& p, const Topic& t, const QosProfile& q);
 int matched(dds_entity_t entity, bool is_writer);
 bool wait_for_acks(dds_entity_t writer, double timeout_s);
 // Takes every available sample; calls visit(sample_ptr) for valid data.
@@ -106,6 +120,10 @@ class Writer : public Entity {
   // false on timeout.
   bool wait_for_acks(double timeout_s) { return detail::wait_for_acks(handle(), timeout_s); }
   [[nodiscard]] int matched_readers() const { return detail::matched(handle(), true); }
+  // Switches the writer's publisher to q.partitions (see detail::repartition_writer).
+  void set_partitions(const Participant& p, const Topic& t, const QosProfile& q) {
+    adopt(detail::repartition_writer(release(), p, t, q));
+  }
 };
 
 template <typename T>

@@ -23,7 +23,7 @@ namespace artms::runtime {
 struct TopicSet {
   explicit TopicSet(const dds::Participant& p);
   dds::Topic clock_tick, step_done, truth_state, gnss_fix, camera_frame, frame_truth,
-      isl_broadcast, nav_telemetry, link_state, event, imp_report;
+      isl_broadcast, nav_telemetry, link_state, event, imp_report, isl_relay, isl_outcome;
 };
 dds::QosProfile clock_qos();      // reliable, transient-local, keep last 1
 dds::QosProfile step_done_qos();  // reliable, transient-local, keep last 1 per service
@@ -31,12 +31,35 @@ dds::QosProfile data_qos();       // reliable, volatile, keep all
 // Camera frames: reliable, keep last 4, in the partition "frames-<observer>"
 // so that each observer receives only its own frames.
 dds::QosProfile frame_qos(const std::string& observer);
+// Inter-satellite link (docs/runtime.md, "Crosslink"). Observers write their
+// broadcasts in partition "isl-tx" (read by the crosslink emulator only); the
+// emulator relays each to each receiver through one writer per directed
+// link, in partition "isl-<from>-<to>" while the link is up and "isl-down"
+// while it is down (no reader is ever in "isl-down": the match disappears);
+// an observer reads the relay topic in "isl-*-<me>". Relay writers carry a
+// lifespan (stale messages expire).
+dds::QosProfile isl_tx_qos();
+dds::QosProfile isl_relay_writer_qos(const std::string& from, const std::string& to, bool up, double lifespan_s);
+dds::QosProfile isl_relay_reader_qos(const std::string& me);
+// The link from -> to at time t, given the distance between the two
+// (truth): "" when up, else why it is down: "disabled" (crosslink.enabled
+// false), "outage" (a scenario outage window holds t; "*" matches any end),
+// "range" (range_m > crosslink.max_range_m). Random loss is per message, not
+// a link state.
+std::string isl_link_down_reason(const config::Scenario& s, const std::string& from, const std::string& to,
+                                 astro::TimeTT t, double range_m);
+// Every directed link between observers, in scenario order (from-major).
+std::vector<std::pair<std::string, std::string>> isl_links(const config::Scenario& s);
 
 // Number of readers each writer of a service must see before the run starts.
 // Derived from the scenario (services(), observers, GNSS flags).
 struct Topology {
   std::vector<std::string> services;            // lock-step participants (truth first)
   std::map<std::string, int> readers_of_topic;  // topic name -> number of reader processes
+  // ISL relay writers of the crosslink emulator, "FROM->TO" -> readers it
+  // must match before step 0: 1 if the link is up at the epoch (from the
+  // initial states), 0 if it starts down.
+  std::map<std::string, int> isl_relay_readers;
 };
 Topology topology(const config::Scenario& s);
 
