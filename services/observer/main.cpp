@@ -202,6 +202,11 @@ int run(const runtime::ServiceOptions& opt) {
   std::size_t rejected = 0;
   std::size_t measurements_released = 0;
   bool samus_flushed = false;
+  struct HeldFrame {
+    artms_msg_CameraFrame msg{};
+    std::vector<std::uint16_t> pixels;
+  };
+  std::deque<HeldFrame> held_frames;
   bool announced = false;
   while (auto tick = clock.wait_tick()) {
     const astro::TimeTT t{tick->t_tt_ns};
@@ -259,7 +264,18 @@ int run(const runtime::ServiceOptions& opt) {
     // Camera frames: checked, then IMP (frame processing, SAMUS tracking with
     // the coarse orbit from the latest GNSS fix); the decided measurements
     // go out as IMP telemetry.
+    // Frames are held until the step after the one they were rendered at
+    // (t_frame = epoch + frame_seq * cadence), so that whether a frame of this
+    // step has already arrived never changes what is processed when.
     frame_reader.take_each([&](const artms_msg_CameraFrame& f) {
+      HeldFrame h;
+      h.msg = f;
+      h.msg.pixels._buffer = nullptr;
+      h.msg.pixels._release = false;
+      if (f.pixels._buffer != nullptr) h.pixels.assign(f.pixels._buffer, f.pixels._buffer + f.pixels._length);
+      held_frames.push_back(std::move(h));
+    });
+    const auto handle_frame = [&](const artms_msg_CameraFrame& f) {
       const bool ok = f.width > 0 && f.height > 0 && f.bit_depth > 0 && f.bit_depth <= 16 &&
                       f.pixels._length == static_cast<std::uint32_t>(f.width) * f.height;
       artms_msg_ImpReport rep{};
@@ -346,7 +362,15 @@ int run(const runtime::ServiceOptions& opt) {
       rep.measurements._release = false;
       imp_writer.write(rep);
       measurements_released += out.size();
-    });
+    };
+    while (!held_frames.empty() &&
+           up.epoch.plus_seconds(static_cast<double>(held_frames.front().msg.frame_seq) * cfg->camera.cadence_s) < t) {
+      HeldFrame& h = held_frames.front();
+      h.msg.pixels._buffer = h.pixels.data();
+      h.msg.pixels._length = h.msg.pixels._maximum = static_cast<std::uint32_t>(h.pixels.size());
+      handle_frame(h.msg);
+      held_frames.pop_front();
+    }
     // Last navigation step (the final tick only closes the run, and what is
     // written then may not reach the recorder): SAMUS releases what it holds.
     const bool last_step = !tick->final_step && t >= up.epoch.plus_seconds(up.duration_s - 0.5 * up.step_s);
@@ -389,6 +413,12 @@ int run(const runtime::ServiceOptions& opt) {
     if (navigator && !tick->final_step) {
       if (last_step) {
         navigator->finish(*samus);
+        events.info(t.ns_since_j2000,
+                    "SOD: " + std::to_string(navigator->late_measurements()) + " local bearings too late for the filter; " +
+                        std::to_string(navigator->remote_broadcasts()) + " broadcasts received, remote bearings " +
+                        std::to_string(navigator->remote_assigned()) + " fused, " +
+                        std::to_string(navigator->remote_unassigned()) + " not assigned, " +
+                        std::to_string(navigator->remote_late()) + " too late");
       } else {
         const std::int64_t safe = frame_times_ns.size() > static_cast<std::size_t>(n_scan)
                                       ? frame_times_ns[frame_times_ns.size() - 1 - static_cast<std::size_t>(n_scan)]

@@ -106,6 +106,7 @@ class Navigator {
   [[nodiscard]] std::size_t remote_broadcasts() const { return remote_broadcasts_; }
   [[nodiscard]] std::size_t remote_assigned() const { return remote_assigned_; }
   [[nodiscard]] std::size_t remote_unassigned() const { return remote_unassigned_; }
+  [[nodiscard]] std::size_t remote_late() const { return remote_late_; }
   // A bearing released by SAMUS: time tag, track, unit line of sight (ECI)
   // and the attitude of its frame.
   void add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci,
