@@ -53,7 +53,7 @@ int run(int argc, char** argv) {
                  "(artms-render's observer_orbit.csv, or a run's nav/<id>.csv); without it no tracking");
   imp::SamusOptions samus_opt;
   app.add_option("--dbscan-min-points", samus_opt.dbscan_min_points, "n_D")->capture_default_str();
-  double eps_px = 10.0;
+  double eps_px = 20.0;
   app.add_option("--dbscan-radius-px", eps_px, "eps_D (pixels)")->capture_default_str();
   app.add_option("--fit-window", samus_opt.fit_window, "measurements in the eq. (9) fit")->capture_default_str();
   double floor_arcsec = 15.0;

@@ -118,7 +118,7 @@ struct CrosslinkConfig {
 struct ImpTuning {
   double detection_sigma = 5.0;      // threshold above background, in noise sigmas
   int dbscan_min_points = 3;         // n_D
-  double dbscan_radius_px = 10.0;    // eps_D
+  double dbscan_radius_px = 20.0;    // eps_D (SCHEMA.md: why 20)
   int dbscan_frames = 5;             // frames of unassigned candidates clustered
 };
 struct BodTuning {

@@ -79,7 +79,7 @@ struct SamusOptions {
   double w_prediction = 1.0, w_fit = 1.0, w_speed = 2.0, w_direction = 2.0, w_brightness = 1.0;
   // Initiation (DBSCAN; the scenario's imp.dbscan_* keys).
   int dbscan_min_points = 3;
-  double dbscan_radius_rad = 10.0 / 5660.0;
+  double dbscan_radius_rad = 20.0 / 5660.0;  // 20 NST pixels (config SCHEMA.md)
   int dbscan_frames = 5;
   double init_max_chi2 = 4.0;           // eq. (9) fit of a new cluster, per degree of freedom
   int confirm_measurements = 6;
