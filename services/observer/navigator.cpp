@@ -63,6 +63,9 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   remote_.assign(target_ids_.size(), 0);
   sod_opt_.health.max_steps_without_update = up.tuning.sod.max_steps_without_update;
   sod_opt_.health.max_large_residuals = up.tuning.sod.max_large_residuals;
+  sod_opt_.bearing_underweighting = up.tuning.sod.underweighting;
+  sod_opt_.adaptive.enabled = up.tuning.sod.adaptive_process_noise;
+  sod_opt_.q_target_a_roe_m2ps *= up.tuning.sod.process_noise_scale;
   sod_opt_.validate();
 }
 

@@ -1162,7 +1162,8 @@ class Parser {
     if (const Val* sv = m.find("sod")) {
       Map sm(ctx_, *sv,
              {"period", "bearing_sigma_arcsec", "eps_assign", "eps_ambig",
-              "max_steps_without_update", "max_large_residuals"});
+              "max_steps_without_update", "max_large_residuals", "underweighting",
+              "adaptive_process_noise", "process_noise_scale"});
       if (sm.ok()) {
         duration_field(ctx_, sm, "period", t.sod.period_s, false);
         number_field(ctx_, sm, "bearing_sigma_arcsec", t.sod.bearing_sigma_arcsec,
@@ -1180,6 +1181,9 @@ class Parser {
         }
         int_field(ctx_, sm, "max_steps_without_update", t.sod.max_steps_without_update, 1, kBig);
         int_field(ctx_, sm, "max_large_residuals", t.sod.max_large_residuals, 1, kBig);
+        number_field(ctx_, sm, "underweighting", t.sod.underweighting, non_negative());
+        bool_field(ctx_, sm, "adaptive_process_noise", t.sod.adaptive_process_noise);
+        number_field(ctx_, sm, "process_noise_scale", t.sod.process_noise_scale, positive());
       }
     }
   }

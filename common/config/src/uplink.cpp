@@ -77,7 +77,10 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"bearing_sigma_arcsec", u.tuning.sod.bearing_sigma_arcsec},
           {"eps_assign", u.tuning.sod.eps_assign}, {"eps_ambig", u.tuning.sod.eps_ambig},
           {"max_steps_without_update", u.tuning.sod.max_steps_without_update},
-          {"max_large_residuals", u.tuning.sod.max_large_residuals}}}}},
+          {"max_large_residuals", u.tuning.sod.max_large_residuals},
+          {"underweighting", u.tuning.sod.underweighting},
+          {"adaptive_process_noise", u.tuning.sod.adaptive_process_noise},
+          {"process_noise_scale", u.tuning.sod.process_noise_scale}}}}},
       {"crosslink",
        {{"enabled", u.crosslink_enabled}, {"period_s", u.isl_period_s},
         {"use_remote_gnss", u.use_remote_gnss}}},
@@ -159,6 +162,9 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.eps_ambig = sod.at("eps_ambig").get<double>();
     u.tuning.sod.max_steps_without_update = sod.at("max_steps_without_update").get<int>();
     u.tuning.sod.max_large_residuals = sod.at("max_large_residuals").get<int>();
+    u.tuning.sod.underweighting = sod.at("underweighting").get<double>();
+    u.tuning.sod.adaptive_process_noise = sod.at("adaptive_process_noise").get<bool>();
+    u.tuning.sod.process_noise_scale = sod.at("process_noise_scale").get<double>();
     const auto& c = j.at("crosslink");
     u.crosslink_enabled = c.at("enabled").get<bool>();
     u.isl_period_s = c.at("period_s").get<double>();

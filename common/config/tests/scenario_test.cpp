@@ -134,7 +134,9 @@ TEST(StarlingScenarios, BothFilesLoad) {
     EXPECT_DOUBLE_EQ(o.camera.cadence_s, 60.0);
     EXPECT_TRUE(o.gnss.enabled);
     EXPECT_FALSE(s.crosslink.use_remote_gnss);
-    EXPECT_DOUBLE_EQ(s.tuning.sod.bearing_sigma_arcsec, 40.0);
+    EXPECT_DOUBLE_EQ(s.tuning.sod.bearing_sigma_arcsec, 0.0);  // IMP's own sigma (docs/sod.md)
+    EXPECT_FALSE(s.tuning.sod.adaptive_process_noise);
+    EXPECT_DOUBLE_EQ(s.tuning.sod.process_noise_scale, 0.01);
     EXPECT_DOUBLE_EQ(s.tuning.bod.period_s, 5400.0);
     EXPECT_EQ(s.source_path, scenario_path(c.file));
     EXPECT_TRUE(validate_scenario_file(scenario_path(c.file)).empty());

@@ -68,6 +68,7 @@ void SodOptions::validate() const {
   require(std::isfinite(adaptive.ceiling_factor) && adaptive.ceiling_factor >= 1.0,
           "adaptive.ceiling_factor", "must be finite and >= 1");
   require(bearing_gate_mahalanobis > 0.0, "bearing_gate_mahalanobis", "must be > 0 (inf disables)");
+  require(bearing_underweighting >= 0.0 && std::isfinite(bearing_underweighting), "bearing_underweighting", "must be >= 0");
   require(gnss_gate_mahalanobis > 0.0, "gnss_gate_mahalanobis", "must be > 0 (inf disables)");
   require(health.bod_max_mahalanobis > 0.0, "health.bod_max_mahalanobis", "must be > 0");
   require(health.bod_max_relative > 0.0, "health.bod_max_relative", "must be > 0");
@@ -127,6 +128,7 @@ struct SodFilter::MeasurementModel {
   int cutoff = 0;
   // Components of z that are angles (residuals wrapped).
   std::vector<bool> angle;
+  double underweighting = 0.0;  // beta (SodOptions::bearing_underweighting)
 };
 
 SodFilter::SodFilter(const dynamics::ForceModel& forces,
@@ -361,14 +363,16 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
   }
   VectorXd z_mean = Z.col(0);
   for (int j = 1; j < m; ++j) z_mean += wm_[j] * wrap_z(Z.col(j) - Z.col(0));
-  MatrixXd S = R;
+  MatrixXd Pzz = MatrixXd::Zero(nz, nz);
   MatrixXd Pxz = MatrixXd::Zero(n, nz);
   for (int j = 0; j < m; ++j) {
     const VectorXd dz = wrap_z(Z.col(j) - z_mean);
     const VectorXd dx = state_difference(X.col(j), x_);
-    S.noalias() += wc_[j] * dz * dz.transpose();
+    Pzz.noalias() += wc_[j] * dz * dz.transpose();
     Pxz.noalias() += wc_[j] * dx * dz.transpose();
   }
+  const double beta = model.underweighting;
+  MatrixXd S = (beta > 0.0 && Pzz.trace() > R.trace() ? 1.0 + beta : 1.0) * Pzz + R;
   S = 0.5 * (S + S.transpose());
   s.prefit_residual = wrap_z(z - z_mean);
   const Eigen::LLT<MatrixXd> llt_s(S);
@@ -437,6 +441,7 @@ UpdateSummary SodFilter::update_bearing(const BearingMeasurement& meas) {
   MeasurementModel model;
   model.cutoff = off + StateLayout::kBlock;
   model.angle = {true, true};
+  model.underweighting = options_.bearing_underweighting;
   model.h = [off, gm, R](const VectorXd& x) -> VectorXd {
     const QnsElements obs = QnsElements::from_vector(x.head<6>());
     const QnsElements tgt = astro::qns_from_roe(obs, Roe::from_vector(x.segment<6>(off)));
@@ -486,6 +491,7 @@ UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas
   const int hi = std::max(meas.from, meas.to);
   model.cutoff = hi >= 0 ? layout_.target_offset(hi) + StateLayout::kBlock : StateLayout::kBlock;
   model.angle = {true, true};
+  model.underweighting = options_.bearing_underweighting;
   const int from = meas.from, to = meas.to;
   const Vec3 r_ext = meas.from_r_eci_m;
   model.h = [=](const VectorXd& xs) -> VectorXd {

@@ -128,5 +128,28 @@ TEST(SodLineOfSight, RemoteBearingsBetweenTargetsAndFromAnExternalObserverConver
   }
 }
 
+TEST(SodUnderweighting, LimitsTheCollapseOfAWidePriorAndIsValidated) {
+  // A stale prior (5 % in a*dlambda, 100 m elsewhere) and a 2" bearing: with
+  // beta = 0.5 the posterior 1-sigma of every ROE stays above what the plain
+  // update gives, and the options reject a negative beta.
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  const auto g = shifted_initial_guess(observer_at_start(), a_roe, 0.05, 100.0);
+  SodOptions plain, under;
+  under.bearing_underweighting = 0.5;
+  SodFilter f0(j2_forces(), {}, {}, StateLayout{2, 0}, plain), f1(j2_forces(), {}, {}, StateLayout{2, 0}, under);
+  f0.initialize(kT0, g.x, g.P);
+  f1.initialize(kT0, g.x, g.P);
+  const auto b = truth.bearing(0, 2 * astro::kArcsecToRad, 0.0, nullptr);
+  ASSERT_TRUE(f0.update_bearing(b).usable);
+  ASSERT_TRUE(f1.update_bearing(b).usable);
+  for (int i = 0; i < 6; ++i) EXPECT_GT(f1.a_roe_sigma_m(0)[i], f0.a_roe_sigma_m(0)[i] * (1.0 - 1e-9)) << i;
+  EXPECT_GT((f1.a_roe_sigma_m(0).array() / f0.a_roe_sigma_m(0).array()).maxCoeff(), 1.1);
+  SodOptions bad;
+  bad.bearing_underweighting = -1.0;
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace artms::sod

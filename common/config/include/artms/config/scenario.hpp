@@ -133,6 +133,9 @@ struct SodTuning {
   double eps_ambig = 6.0;
   int max_steps_without_update = 120;
   int max_large_residuals = 10;
+  double underweighting = 0.5;        // beta of measurement underweighting (docs/sod.md)
+  bool adaptive_process_noise = true;  // paper: adaptive process noise estimation
+  double process_noise_scale = 1.0;   // times the nominal target process noise
 };
 struct ArtmsTuning {
   ImpTuning imp;

@@ -92,6 +92,12 @@ struct SodOptions {
   // Measurements whose innovation Mahalanobis distance sqrt(nu^T S^-1 nu)
   // exceeds these are rejected (counted, state untouched). kInf disables.
   double bearing_gate_mahalanobis = 5.0;
+  // Measurement underweighting (Lear; Zanetti and D'Souza 2013): while the
+  // predicted bearing spread P_zz exceeds the measurement noise R, the
+  // innovation covariance is S = (1 + beta) P_zz + R instead of P_zz + R, so
+  // that one bearing cannot collapse a wide, nonlinear prior (a stale
+  // a-priori, a target seen for the first time). 0 disables.
+  double bearing_underweighting = 0.0;
   double gnss_gate_mahalanobis = 6.0;
   HealthOptions health;
 
