@@ -172,36 +172,36 @@ ObserverUplink read_uplink(const std::string& path) {
     u.swarm_ids = j.at("swarm_ids").get<std::vector<std::string>>();
     if (j.contains("camera_calibration")) {
       const auto& k = j.at("camera_calibration");
-      auto& c = u.camera_calibration;
-      c.width_px = k.at("width_px").get<int>();
-      c.height_px = k.at("height_px").get<int>();
-      c.fx_px = k.at("fx_px").get<double>();
-      c.fy_px = k.at("fy_px").get<double>();
-      c.cx_px = k.at("cx_px").get<double>();
-      c.cy_px = k.at("cy_px").get<double>();
-      c.k1 = k.at("k1").get<double>();
-      c.k2 = k.at("k2").get<double>();
-      c.psf_sigma_px = k.at("psf_sigma_px").get<double>();
-      c.gain_e_per_dn = k.at("gain_e_per_dn").get<double>();
-      c.saturation_dn = k.at("saturation_dn").get<double>();
+      auto& cal = u.camera_calibration;
+      cal.width_px = k.at("width_px").get<int>();
+      cal.height_px = k.at("height_px").get<int>();
+      cal.fx_px = k.at("fx_px").get<double>();
+      cal.fy_px = k.at("fy_px").get<double>();
+      cal.cx_px = k.at("cx_px").get<double>();
+      cal.cy_px = k.at("cy_px").get<double>();
+      cal.k1 = k.at("k1").get<double>();
+      cal.k2 = k.at("k2").get<double>();
+      cal.psf_sigma_px = k.at("psf_sigma_px").get<double>();
+      cal.gain_e_per_dn = k.at("gain_e_per_dn").get<double>();
+      cal.saturation_dn = k.at("saturation_dn").get<double>();
     }
     if (j.contains("star_catalog_file")) u.star_catalog_file = j.at("star_catalog_file").get<std::string>();
     if (j.contains("apriori_age_days")) u.apriori_age_days = j.at("apriori_age_days").get<double>();
     if (j.contains("apriori")) {
       for (const auto& a : j.at("apriori")) {
-        TargetApriori t;
-        t.target = a.at("target").get<std::string>();
+        TargetApriori ta;
+        ta.target = a.at("target").get<std::string>();
         const auto roe = a.at("roe").get<std::vector<double>>();
         const auto P = a.at("covariance_roe").get<std::vector<double>>();
         if (roe.size() != 6 || P.size() != 36) {
-          throw std::runtime_error(path + ": apriori of " + t.target + ": roe needs 6 values, covariance_roe 36");
+          throw std::runtime_error(path + ": apriori of " + ta.target + ": roe needs 6 values, covariance_roe 36");
         }
-        for (int i = 0; i < 6; ++i) t.roe[i] = roe[static_cast<std::size_t>(i)];
-        for (int i = 0; i < 36; ++i) t.P_roe.data()[i] = P[static_cast<std::size_t>(i)];
-        if (!t.roe.allFinite() || !t.P_roe.allFinite()) {
-          throw std::runtime_error(path + ": apriori of " + t.target + ": non-finite value");
+        for (int i = 0; i < 6; ++i) ta.roe[i] = roe[static_cast<std::size_t>(i)];
+        for (int i = 0; i < 36; ++i) ta.P_roe.data()[i] = P[static_cast<std::size_t>(i)];
+        if (!ta.roe.allFinite() || !ta.P_roe.allFinite()) {
+          throw std::runtime_error(path + ": apriori of " + ta.target + ": non-finite value");
         }
-        u.apriori.push_back(t);
+        u.apriori.push_back(ta);
       }
     }
     return u;

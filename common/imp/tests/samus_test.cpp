@@ -160,7 +160,7 @@ Outcome run(const Scenario& sc, const SamusOptions& opt = {}) {
     std::int64_t last_frame = -1000;
     for (const auto& [f, id] : v) {
       if (id < 0) continue;
-      if (last_id >= 0 && (f - last_frame) * sc.cadence_s > 900.0) {
+      if (last_id >= 0 && static_cast<double>(f - last_frame) * sc.cadence_s > 900.0) {
         ++o.gaps;
         if (id == last_id) ++o.gaps_same_id;
       }
