@@ -24,6 +24,8 @@ void FrameProcessorOptions::validate() const {
   persistence.validate();
   if (!(tracking_tolerance_rad > 0.0)) throw std::invalid_argument("FrameProcessorOptions.tracking_tolerance_rad out of range");
   if (!(prior_max_age_s >= 0.0)) throw std::invalid_argument("FrameProcessorOptions.prior_max_age_s out of range");
+  if (!(blend_radius_px >= 0.0)) throw std::invalid_argument("FrameProcessorOptions.blend_radius_px out of range");
+  if (!(blend_sigma_px >= 0.0)) throw std::invalid_argument("FrameProcessorOptions.blend_sigma_px out of range");
 }
 
 FrameProcessor::FrameProcessor(Intrinsics intrinsics, const StarIdCatalog& catalog, FrameProcessorOptions options)
@@ -108,7 +110,15 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
     cand.flux_dn = c.flux_dn;
     cand.u_cam = dirs[n];
     cand.u_eci = (R_eci_from_cam * dirs[n]).normalized();
-    cand.sigma_rad = std::hypot(c.sigma_px / K_.fx, out.attitude_sigma_rad);
+    double sigma_px = c.sigma_px;
+    for (const auto& o : det.centroids) {
+      const double d = std::hypot(o.x_px - c.x_px, o.y_px - c.y_px);
+      if (d > 0.0 && d < opt_.blend_radius_px) {
+        sigma_px = std::hypot(sigma_px, opt_.blend_sigma_px);  // a blend (see FrameProcessorOptions)
+        break;
+      }
+    }
+    cand.sigma_rad = std::hypot(sigma_px / K_.fx, out.attitude_sigma_rad);
     now.px.emplace_back(c.x_px, c.y_px);
     now.u_eci.push_back(cand.u_eci);
     // Uncatalogued star: same inertial direction as an object of an earlier frame.

@@ -59,6 +59,13 @@ struct FrameProcessorOptions {
   // Forget the previous attitude when the frame is older than this.
   double prior_max_age_s = 600.0;
   PersistenceOptions persistence;
+  // Blends: a candidate with another detection (star or not) closer than
+  // blend_radius_px has blend_sigma_px added in quadrature to its centroid
+  // sigma: the Cramer-Rao sigma of detect() assumes an isolated source, and
+  // the wing of a neighbour a few pixels away biases the weighted centroid by
+  // a good fraction of a pixel (two targets 5 px apart in the IT formation).
+  double blend_radius_px = 6.0;
+  double blend_sigma_px = 0.5;
   void validate() const;
 };
 
