@@ -54,6 +54,23 @@ std::vector<imp::CatalogStar> read_star_catalog(const std::string& path) {
   return out;
 }
 
+// One IMP measurement as telemetry (artms-imp's columns).
+artms_msg_ImpMeasurement imp_measurement(std::uint32_t frame_seq, std::int64_t t_ns, int track,
+                                         const imp::Candidate& c) {
+  artms_msg_ImpMeasurement m{};
+  m.frame_seq = frame_seq;
+  m.t_tt_ns = t_ns;
+  m.track_id = track;
+  m.x_px = c.x_px;
+  m.y_px = c.y_px;
+  for (int i = 0; i < 3; ++i) m.u_eci[i] = c.u_eci[i];
+  const astro::Bearing b = astro::bearing_from_los(c.u_cam);
+  m.az_rad = b.az_rad;
+  m.el_rad = b.el_rad;
+  m.sigma_rad = c.sigma_rad;
+  return m;
+}
+
 struct Fix {
   astro::TimeTT t;
   astro::StateVector x;
@@ -302,18 +319,7 @@ int run(const runtime::ServiceOptions& opt) {
       rep.uncatalogued_stars_removed = static_cast<std::uint32_t>(fr.uncatalogued_stars_removed);
       std::vector<artms_msg_ImpMeasurement> out;
       auto add = [&](std::uint32_t frame_seq, std::int64_t t_ns, int track, const imp::Candidate& c) {
-        artms_msg_ImpMeasurement m{};
-        m.frame_seq = frame_seq;
-        m.t_tt_ns = t_ns;
-        m.track_id = track;
-        m.x_px = c.x_px;
-        m.y_px = c.y_px;
-        for (int i = 0; i < 3; ++i) m.u_eci[i] = c.u_eci[i];
-        const astro::Bearing b = astro::bearing_from_los(c.u_cam);
-        m.az_rad = b.az_rad;
-        m.el_rad = b.el_rad;
-        m.sigma_rad = c.sigma_rad;
-        out.push_back(m);
+        out.push_back(imp_measurement(frame_seq, t_ns, track, c));
         isl_keep(t_ns, track, c.u_eci, c.sigma_rad);
       };
       if (fr.attitude_usable) {
@@ -383,18 +389,8 @@ int run(const runtime::ServiceOptions& opt) {
           navigator->add_bearing(astro::TimeTT{static_cast<std::int64_t>(std::llround(m.t_s * 1e9))}, m.track_id,
                                  m.c.u_eci, qa->second, m.c.sigma_rad);
         }
-        artms_msg_ImpMeasurement x{};
-        x.frame_seq = static_cast<std::uint32_t>(m.frame);
-        x.t_tt_ns = static_cast<std::int64_t>(std::llround(m.t_s * 1e9));
-        x.track_id = m.track_id;
-        x.x_px = m.c.x_px;
-        x.y_px = m.c.y_px;
-        for (int i = 0; i < 3; ++i) x.u_eci[i] = m.c.u_eci[i];
-        const astro::Bearing b = astro::bearing_from_los(m.c.u_cam);
-        x.az_rad = b.az_rad;
-        x.el_rad = b.el_rad;
-        x.sigma_rad = m.c.sigma_rad;
-        out.push_back(x);
+        out.push_back(imp_measurement(static_cast<std::uint32_t>(m.frame),
+                                      static_cast<std::int64_t>(std::llround(m.t_s * 1e9)), m.track_id, m.c));
       }
       artms_msg_ImpReport rep{};
       dds::copy_string(rep.observer, sizeof rep.observer, me);

@@ -139,6 +139,13 @@ astro::Roe Navigator::apriori_at(int k, astro::TimeTT t) const {
   return astro::Roe::from_vector(roe);
 }
 
+astro::Mat6 Navigator::apriori_covariance_at(int k, astro::TimeTT t) const {
+  const double n = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(a_observer_m_, 3));
+  Mat6 Phi = Mat6::Identity();
+  Phi(1, 0) = -1.5 * n * astro::seconds_between(up_.epoch, t);
+  return Phi * up_.apriori[static_cast<std::size_t>(k)].P_roe * Phi.transpose();
+}
+
 void Navigator::initialise(const sod::GnssMeasurement& g) {
   const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
   a_observer_m_ = obs.a_m;
@@ -155,13 +162,9 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
   const int n = static_cast<int>(target_ids_.size());
   Eigen::MatrixXd P = Eigen::MatrixXd::Zero(6 * (n + 1), 6 * (n + 1));
   P.topLeftCorner<6, 6>() = P_obs;
-  const double mean_motion = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(obs.a_m, 3));
   for (int k = 0; k < n; ++k) {
     roes.push_back(apriori_at(k, g.t));
-    // The a-priori covariance carried along the drift: dlambda += -1.5 n dt da.
-    Mat6 Phi = Mat6::Identity();
-    Phi(1, 0) = -1.5 * mean_motion * astro::seconds_between(up_.epoch, g.t);
-    P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Phi * up_.apriori[static_cast<std::size_t>(k)].P_roe * Phi.transpose();
+    P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = apriori_covariance_at(k, g.t);
   }
   filter_->initialize(g.t, filter_->make_state(obs, roes), P);
   tracks_.clear();
@@ -341,11 +344,7 @@ void Navigator::check_health() {
     const auto c = h.targets[k].condition;
     if (c != sod::HealthCondition::kLargeResiduals && c != sod::HealthCondition::kOutOfRange) continue;
     const int ki = static_cast<int>(k);
-    const astro::Roe r = apriori_at(ki, f.epoch());
-    const double n = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(f.observer().a_m, 3));
-    Mat6 Phi = Mat6::Identity();
-    Phi(1, 0) = -1.5 * n * astro::seconds_between(up_.epoch, f.epoch());
-    f.reinitialize_target(ki, r.as_vector(), Phi * up_.apriori[k].P_roe * Phi.transpose());
+    f.reinitialize_target(ki, apriori_at(ki, f.epoch()).as_vector(), apriori_covariance_at(ki, f.epoch()));
     for (auto& [tid, as] : tracks_) {
       if (as.target == ki) as = Association{};
     }

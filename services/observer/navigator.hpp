@@ -187,6 +187,8 @@ class Navigator {
   void process_remote(const std::vector<Event>& group);
   void initialise(const sod::GnssMeasurement& g);
   [[nodiscard]] astro::Roe apriori_at(int k, astro::TimeTT t) const;
+  // Its covariance carried along the same drift: Phi P Phi^T, Phi(dlambda, da) = -1.5 n dt.
+  [[nodiscard]] astro::Mat6 apriori_covariance_at(int k, astro::TimeTT t) const;
   void check_health();
   // The filter's bearing 1-sigma: sod.bearing_sigma_arcsec, or IMP's own when 0.
   [[nodiscard]] double bearing_sigma(double imp_sigma_rad) const;

@@ -17,9 +17,7 @@ namespace artms::swarm {
 
 namespace fs = std::filesystem;
 
-namespace {
-
-std::vector<std::string> split(const std::string& line, char sep = ',') {
+std::vector<std::string> split_csv(const std::string& line, char sep) {
   std::vector<std::string> out;
   std::stringstream ss(line);
   std::string c;
@@ -27,10 +25,12 @@ std::vector<std::string> split(const std::string& line, char sep = ',') {
   return out;
 }
 
+namespace {
+
 // Header name -> column index.
 std::map<std::string, std::size_t> columns(const std::string& header) {
   std::map<std::string, std::size_t> m;
-  const auto h = split(header);
+  const auto h = split_csv(header);
   for (std::size_t i = 0; i < h.size(); ++i) m[h[i]] = i;
   return m;
 }
@@ -73,7 +73,7 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
       if (!std::getline(in, line)) continue;
       const auto col = columns(line);
       while (std::getline(in, line)) {
-        const auto c = split(line);
+        const auto c = split_csv(line);
         try {
           if (c.size() < 17 || c[col.at("health")] == "2") continue;
           const std::int64_t t = std::stoll(c[col.at("t_tt_ns")]);
@@ -107,7 +107,7 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     if (std::getline(in, line)) {
       const auto col = columns(line);
       while (std::getline(in, line)) {
-        const auto c = split(line);
+        const auto c = split_csv(line);
         try {
           Row r;
           r.t = std::stoll(c.at(col.at("t_tt_ns")));
@@ -120,7 +120,7 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
           r.local = std::stol(c.at(col.at("local_measurements")));
           r.remote = std::stol(c.at(col.at("remote_measurements")));
           if (col.count("covariance_upper") && col.at("covariance_upper") < c.size()) {
-            const auto v = split(c[col.at("covariance_upper")], ' ');
+            const auto v = split_csv(c[col.at("covariance_upper")], ' ');
             if (v.size() == 21) {
               std::size_t n = 0;
               for (int a = 0; a < 6; ++a) {

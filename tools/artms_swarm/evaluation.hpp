@@ -23,10 +23,15 @@
 
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "artms/config/scenario.hpp"
 
 namespace artms::swarm {
+
+// One line of the run folder's CSV files split on `sep` (no quoting there).
+std::vector<std::string> split_csv(const std::string& line, char sep = ',');
 
 // Fills summary["observers"][id]["targets"] and ["period_s"]; never throws
 // for missing or malformed files (the figures it cannot compute are null).

@@ -159,15 +159,6 @@ std::string hms(double s) {
   return buf;
 }
 
-// One CSV line split on commas (the run folder's files have no quoting).
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> cols;
-  std::stringstream ss(line);
-  std::string c;
-  while (std::getline(ss, c, ',')) cols.push_back(c);
-  return cols;
-}
-
 // Last data row of a CSV (header skipped), split on commas.
 std::vector<std::string> last_row(const fs::path& path) {
   std::ifstream in(path);
@@ -176,7 +167,7 @@ std::vector<std::string> last_row(const fs::path& path) {
   while (std::getline(in, line)) {
     if (!line.empty()) last = line;
   }
-  return split_csv(last);
+  return swarm::split_csv(last);
 }
 
 nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
@@ -223,7 +214,7 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
     std::string line;
     std::getline(in, line);
     while (std::getline(in, line)) {
-      const std::vector<std::string> c = split_csv(line);
+      const std::vector<std::string> c = swarm::split_csv(line);
       if (c.size() < 7) continue;
       seen[c[2]][c[3]] = {c[5] == "1", c[6] != "none"};
     }
@@ -266,7 +257,7 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
     std::string line;
     std::getline(in, line);
     while (std::getline(in, line)) {
-      const std::vector<std::string> c = split_csv(line);
+      const std::vector<std::string> c = swarm::split_csv(line);
       if (c.size() < 11) continue;
       const std::string key = c[2] + "->" + c[3];
       if (!per_link.contains(key)) per_link[key] = zero();

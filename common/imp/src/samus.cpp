@@ -103,6 +103,47 @@ std::span<const Samus::Meas> window(const std::vector<Samus::Meas>& v, int n) {
 
 }  // namespace
 
+namespace {
+
+// The kinematic rules for appending m to a track whose measurements are
+// `track` (time order, not empty): 1) rate below max_rate_radps; 2) speed
+// ratio of the last two displacements below max_speed_ratio; 3) no reversal
+// of more than 90 degrees; 4) (with `turning`) no change of turning
+// direction. Rules 2-4 apply only to displacements above significance_sigma
+// measurement sigmas. Also returns the speed and direction cost terms.
+bool kinematic_rules_pass(std::span<const Samus::Meas> track, const Samus::Meas& m, const SamusOptions& opt,
+                          bool turning, double& speed_term, double& dir_term) {
+  speed_term = dir_term = 0.0;
+  const Samus::Meas& last = track.back();
+  const double dt = m.t_s - last.t_s;
+  if (!(dt > 0.0)) return false;
+  const Eigen::Vector2d d_new = m.p - last.p;
+  const double noise = opt.significance_sigma * std::sqrt(2.0) * m.sigma;
+  if (d_new.norm() > opt.max_rate_radps * dt + noise) return false;  // rule 1
+  if (track.size() < 2) return true;
+  const Samus::Meas& prev = track[track.size() - 2];
+  const Eigen::Vector2d d_prev = last.p - prev.p;
+  const double dt_prev = last.t_s - prev.t_s;
+  if (!(d_new.norm() > noise && d_prev.norm() > noise && dt_prev > 0.0)) return true;
+  const double v_new = d_new.norm() / dt, v_prev = d_prev.norm() / dt_prev;
+  if (std::max(v_new, v_prev) > opt.max_speed_ratio * std::min(v_new, v_prev)) return false;  // rule 2
+  const double cosang = d_new.dot(d_prev) / (d_new.norm() * d_prev.norm());
+  if (cosang < 0.0) return false;  // rule 3
+  speed_term = std::abs(std::log(v_new / v_prev));
+  dir_term = 1.0 - cosang;
+  if (turning && track.size() >= 3) {  // rule 4
+    const Eigen::Vector2d d_pp = prev.p - track[track.size() - 3].p;
+    if (d_pp.norm() > noise) {
+      const double s1 = cross2(d_pp, d_prev) / (d_pp.norm() * d_prev.norm());
+      const double s2 = cross2(d_prev, d_new) / (d_prev.norm() * d_new.norm());
+      if (std::abs(s1) > opt.min_turn_sine && std::abs(s2) > opt.min_turn_sine && s1 * s2 < 0.0) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 Samus::Samus(SamusOptions options) : opt_(std::move(options)) { opt_.validate(); }
 
 bool Samus::plane_coordinates(const Eigen::Vector3d& u_eci, const astro::StateVector& observer_eci,
@@ -244,39 +285,8 @@ SamusFrameSummary Samus::process(const TrackerInput& in, std::span<const TargetP
           if (!(d2 <= opt_.aided_gate_chi2)) continue;
           inc = d2;
         } else {
-          const Eigen::Vector2d d_new = m.p - last.p;
-          const double noise = opt_.significance_sigma * std::sqrt(2.0) * m.sigma;
-          // Rule 1: maximum track velocity.
-          if (d_new.norm() > opt_.max_rate_radps * dt + noise) continue;
-          const bool sig_new = d_new.norm() > noise;
           double speed_term = 0.0, dir_term = 0.0;
-          if (L.size() >= 2) {
-            const Meas& prev = L[L.size() - 2];
-            const Eigen::Vector2d d_prev = last.p - prev.p;
-            const double dt_prev = last.t_s - prev.t_s;
-            const bool sig_prev = d_prev.norm() > noise;
-            if (sig_new && sig_prev && dt_prev > 0.0) {
-              const double v_new = d_new.norm() / dt, v_prev = d_prev.norm() / dt_prev;
-              // Rule 2: consistent velocity.
-              if (std::max(v_new, v_prev) > opt_.max_speed_ratio * std::min(v_new, v_prev)) continue;
-              const double cosang = d_new.dot(d_prev) / (d_new.norm() * d_prev.norm());
-              // Rule 3: no acute angles (a reversal of more than 90 degrees).
-              if (cosang < 0.0) continue;
-              speed_term = std::abs(std::log(v_new / v_prev));
-              dir_term = 1.0 - cosang;
-              // Rule 4: consistent turning direction.
-              if (L.size() >= 3) {
-                const Eigen::Vector2d d_pp = prev.p - L[L.size() - 3].p;
-                if (d_pp.norm() > noise) {
-                  const double s1 = cross2(d_pp, d_prev) / (d_pp.norm() * d_prev.norm());
-                  const double s2 = cross2(d_prev, d_new) / (d_prev.norm() * d_new.norm());
-                  if (std::abs(s1) > opt_.min_turn_sine && std::abs(s2) > opt_.min_turn_sine && s1 * s2 < 0.0) {
-                    continue;
-                  }
-                }
-              }
-            }
-          }
+          if (!kinematic_rules_pass(L, m, opt_, true, speed_term, dir_term)) continue;
           // Rule 5: close to the eq. (9) prediction.
           const double d2 = (m.p - pred).squaredNorm() / (var_pred + m.sigma * m.sigma);
           if (!(d2 <= opt_.gate_sigma * opt_.gate_sigma)) continue;
@@ -438,24 +448,13 @@ SamusFrameSummary Samus::process(const TrackerInput& in, std::span<const TargetP
         chain.push_back(best);
         ref = pts[static_cast<std::size_t>(best)];
       }
-      // Rules 1-4 along the chain, then the eq. (9) fit.
+      // Rules 1-3 along the chain, then the eq. (9) fit.
       std::vector<Meas> ms;
       for (int k : chain) ms.push_back(unassigned_[static_cast<std::size_t>(k)].m);
       bool ok = true;
       for (std::size_t k = 1; k < ms.size() && ok; ++k) {
-        const Eigen::Vector2d d = ms[k].p - ms[k - 1].p;
-        const double dt = ms[k].t_s - ms[k - 1].t_s;
-        const double noise = opt_.significance_sigma * std::sqrt(2.0) * ms[k].sigma;
-        if (!(dt > 0.0) || d.norm() > opt_.max_rate_radps * dt + noise) ok = false;
-        if (ok && k >= 2) {
-          const Eigen::Vector2d dp = ms[k - 1].p - ms[k - 2].p;
-          const double dtp = ms[k - 1].t_s - ms[k - 2].t_s;
-          if (d.norm() > noise && dp.norm() > noise) {
-            const double v1 = d.norm() / dt, v0 = dp.norm() / dtp;
-            if (std::max(v1, v0) > opt_.max_speed_ratio * std::min(v1, v0)) ok = false;
-            if (d.dot(dp) < 0.0) ok = false;
-          }
-        }
+        double unused_speed = 0.0, unused_dir = 0.0;
+        ok = kinematic_rules_pass(std::span<const Meas>(ms.data(), k), ms[k], opt_, false, unused_speed, unused_dir);
       }
       if (!ok) continue;
       const auto fit = fit_eq9(ms, opt_.harmonic_prior_rad);
