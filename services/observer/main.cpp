@@ -153,6 +153,19 @@ int run(const runtime::ServiceOptions& opt) {
                        60.0);
 
   std::optional<Fix> last_fix;
+  std::uint32_t aided_detections = 0, direct_refused_star = 0;
+  struct PendingDirect {
+    std::uint32_t frame_seq;
+    std::int64_t t_ns;
+    int target;
+    imp::Candidate c;
+    Eigen::Quaterniond q_cam_from_eci;
+  };
+  std::vector<PendingDirect> pending_direct;
+  imp::AidedDetectionOptions aided_options;
+  aided_options.threshold_snr = std::max(up.tuning.imp.aided_detection_snr, 1e-9);
+  aided_options.psf_sigma_px = up.camera_calibration.psf_sigma_px;
+  aided_options.gain_e_per_dn = up.camera_calibration.gain_e_per_dn;
   // ISL: bearings decided since the last broadcast, counters.
   std::vector<artms_msg_BearingMeasurement> isl_bearings;
   std::optional<astro::TimeTT> last_broadcast;
@@ -185,6 +198,7 @@ int run(const runtime::ServiceOptions& opt) {
     if (dds::to_string(b.receiver, sizeof b.receiver) != me) return "addressed to another receiver";
     if (b.source > 3) return "unknown orbit source " + std::to_string(b.source);
     rb.t = astro::TimeTT{b.t_tt_ns};
+    rb.seq = b.broadcast_seq;
     rb.source = b.source;
     rb.reinitialising = b.reinitialising;
     for (int i = 0; i < 3; ++i) {
@@ -320,12 +334,34 @@ int run(const runtime::ServiceOptions& opt) {
       std::vector<artms_msg_ImpMeasurement> out;
       auto add = [&](std::uint32_t frame_seq, std::int64_t t_ns, int track, const imp::Candidate& c) {
         out.push_back(imp_measurement(frame_seq, t_ns, track, c));
+        // A candidate SOD assigned as a single detection and that SAMUS later
+        // releases in a track is broadcast once only.
+        if (track >= 0 && navigator && navigator->direct_assigned(astro::TimeTT{t_ns}, c.u_eci)) return;
         isl_keep(t_ns, track, c.u_eci, c.sigma_rad);
+      };
+      const auto release_direct = [&](const PendingDirect& p) {
+        navigator->add_direct(astro::TimeTT{p.t_ns}, p.target, p.c.u_eci, p.q_cam_from_eci, p.c.sigma_rad);
+        add(p.frame_seq, p.t_ns, -2 - p.target, p.c);
       };
       if (fr.attitude_usable) {
         const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
         for (int i = 0; i < 4; ++i) rep.q_cam_from_eci[i] = q[static_cast<std::size_t>(i)];
         rep.residual_arcsec = fr.residual_rms_rad / astro::kArcsecToRad;
+        // Single detections SOD assigned in earlier frames: a source at the
+        // same inertial direction in this frame is a faint star (refused);
+        // otherwise (or off this frame's sensor) the bearing is released.
+        if (navigator) {
+          const std::span<const std::uint16_t> px(f.pixels._buffer, f.pixels._length);
+          for (const auto& p : pending_direct) {
+            const auto star = processor->source_at(px, p.c.u_eci, aided_options);
+            if (star && *star) {
+              ++direct_refused_star;
+              continue;
+            }
+            release_direct(p);
+          }
+          pending_direct.clear();
+        }
         if (last_fix) {
           imp::TrackerInput in;
           in.frame = f.frame_seq;
@@ -345,9 +381,33 @@ int run(const runtime::ServiceOptions& opt) {
           // among the candidates no SAMUS track took; reported with track id
           // -2 - k (k: the target's index in the uplinked a-priori).
           if (navigator) {
-            for (const auto& [ci, k] :
-                 navigator->assign_untracked(tf, fr.candidates, ss.taken, fr.q_cam_from_eci, in.observer_eci, *samus)) {
-              add(f.frame_seq, f.time_tag_tt_ns, -2 - k, fr.candidates[static_cast<std::size_t>(ci)]);
+            // SOD-aided detection (imp/aided_detection.hpp): an untracked
+            // target with no candidate in its validity region is searched
+            // for below the frame's detection threshold.
+            std::vector<imp::Candidate> candidates = fr.candidates;
+            if (up.tuning.imp.aided_detection_snr > 0.0) {
+              const Eigen::Matrix3d R_cam_from_eci = fr.q_cam_from_eci.toRotationMatrix();
+              const auto pixel_of = [&](const Eigen::Vector3d& u) { return K.project(R_cam_from_eci * u); };
+              for (const auto& reg : navigator->untracked_regions(tf, pixel_of)) {
+                const Eigen::Matrix2d S_inv =
+                    (reg.cov_px2 + std::pow(aided_options.psf_sigma_px, 2) * Eigen::Matrix2d::Identity()).inverse();
+                const bool have = std::any_of(fr.candidates.begin(), fr.candidates.end(), [&](const imp::Candidate& c) {
+                  const Eigen::Vector2d d = Eigen::Vector2d(c.x_px, c.y_px) - reg.px;
+                  return d.dot(S_inv * d) <= aided_options.gate_chi2;
+                });
+                if (have) continue;
+                const auto c = processor->aided_candidate(
+                    std::span<const std::uint16_t>(f.pixels._buffer, f.pixels._length), reg.px, reg.cov_px2, aided_options);
+                if (c) {
+                  candidates.push_back(*c);
+                  ++aided_detections;
+                }
+              }
+            }
+            // Held until the next frame has shown that it is not a faint star.
+            for (const auto& [ci, k] : navigator->assign_untracked(tf, candidates, ss.taken, in.observer_eci, *samus)) {
+              pending_direct.push_back({f.frame_seq, f.time_tag_tt_ns, k, candidates[static_cast<std::size_t>(ci)],
+                                        fr.q_cam_from_eci});
             }
           }
           for (const auto& m : ss.released) {
@@ -383,6 +443,11 @@ int run(const runtime::ServiceOptions& opt) {
     if (last_step && samus && !samus_flushed) {
       samus_flushed = true;
       std::vector<artms_msg_ImpMeasurement> out;
+      for (const auto& p : pending_direct) {  // no later frame to check them against
+        if (navigator) navigator->add_direct(astro::TimeTT{p.t_ns}, p.target, p.c.u_eci, p.q_cam_from_eci, p.c.sigma_rad);
+        out.push_back(imp_measurement(p.frame_seq, p.t_ns, -2 - p.target, p.c));
+      }
+      pending_direct.clear();
       for (const auto& m : samus->flush()) {
         const auto qa = frame_attitude.find(static_cast<std::uint32_t>(m.frame));
         if (navigator && qa != frame_attitude.end()) {
@@ -403,7 +468,11 @@ int run(const runtime::ServiceOptions& opt) {
       measurements_released += out.size();
       events.info(t.ns_since_j2000, "IMP: " + std::to_string(frames_received) + " frames, " +
                                         std::to_string(samus->tracks().size()) + " tracks, " +
-                                        std::to_string(measurements_released) + " measurements reported");
+                                        std::to_string(measurements_released) + " measurements reported, " +
+                                        std::to_string(aided_detections) + " SOD-aided detections, " +
+                                        std::to_string(direct_refused_star) +
+                                        " single detections refused as faint stars (seen again at the same "
+                                        "inertial direction)");
     }
     // SOD catches up with everything IMP has decided.
     if (navigator && !tick->final_step) {

@@ -58,6 +58,11 @@ Mat6 jacobian_rv_from_qns(const astro::QnsElements& oe) {
 Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceModel& forces, NavigatorOptions options)
     : up_(up), forces_(forces), opt_(options), onboard_(forces, dynamics::SpacecraftProperties{}) {
   fuse_remote_ = up.observer.mode == 3;
+  if (opt_.remote_hold_s < 0.0) {
+    opt_.remote_hold_s = (imp::SamusOptions{}.n_scan + up.tuning.imp.dbscan_frames) * up.swarm_max_cadence_s +
+                         up.isl_period_s + up.isl_latency_s + 2.0 * up.step_s;
+  }
+  if (fuse_remote_) opt_.max_lag_s = std::max(opt_.max_lag_s, opt_.remote_hold_s);
   for (const auto& a : up.apriori) target_ids_.push_back(a.target);
   local_.assign(target_ids_.size(), 0);
   remote_.assign(target_ids_.size(), 0);
@@ -71,6 +76,20 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
 
 void Navigator::add_remote(const RemoteBroadcast& b) {
   ++remote_broadcasts_;
+  // Link watch: a sender silent for more than three ISL periods had its link
+  // down (outage, range); count its broadcasts after that gap.
+  LinkWatch& w = links_[b.sender];
+  if (w.last && astro::seconds_between(*w.last, b.t) > 3.0 * up_.isl_period_s) {
+    ++w.gap;
+    w.since_gap = 1;
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "ISL: broadcasts from %s again after %.0f s without", b.sender.c_str(),
+                  astro::seconds_between(*w.last, b.t));
+    messages_.push_back(buf);
+  } else if (w.since_gap > 0) {
+    ++w.since_gap;
+  }
+  w.last = b.t;
   if (!fuse_remote_ || b.bearings.empty()) return;
   auto it = std::find(senders_.begin(), senders_.end(), b.sender);
   if (it == senders_.end()) it = senders_.insert(senders_.end(), b.sender);
@@ -86,6 +105,9 @@ void Navigator::add_remote(const RemoteBroadcast& b) {
     e.track = sender;
     e.u_eci = rb.u_eci;
     e.imp_sigma_rad = rb.sigma_rad;
+    e.gap = w.gap;
+    e.since_gap = w.since_gap;
+    e.seq = b.seq;
     if (orbit_ok) {
       auto p = at.find(rb.t.ns_since_j2000);
       if (p == at.end()) {
@@ -116,16 +138,36 @@ double Navigator::bearing_sigma(double imp_sigma_rad) const {
   return s > 0.0 ? s * astro::kArcsecToRad : std::max(imp_sigma_rad, 1.0 * astro::kArcsecToRad);
 }
 
-void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci,
-                            const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
+Navigator::Event Navigator::bearing_event(astro::TimeTT t, int kind, int track, const Eigen::Vector3d& u_eci,
+                                          const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
   Event e;
   e.t = t;
-  e.kind = 1;
+  e.kind = kind;
   e.track = track;
   e.u_eci = u_eci;
   e.q_cam_from_eci = q_cam_from_eci;
   e.imp_sigma_rad = imp_sigma_rad;
+  return e;
+}
+
+void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci,
+                            const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
+  Event e = bearing_event(t, 1, track, u_eci, q_cam_from_eci, imp_sigma_rad);
+  e.direct = direct_assigned(t, u_eci);
   queue_.push_back(e);
+}
+
+void Navigator::add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u_eci,
+                           const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
+  queue_.push_back(bearing_event(t, 2, target, u_eci, q_cam_from_eci, imp_sigma_rad));
+  direct_.emplace_back(t, u_eci);
+}
+
+bool Navigator::direct_assigned(astro::TimeTT t, const Eigen::Vector3d& u_eci) const {
+  return std::any_of(direct_.begin(), direct_.end(), [&](const auto& d) {
+    // SAMUS carries time as seconds (double): the same frame within a microsecond.
+    return std::abs(d.first.ns_since_j2000 - t.ns_since_j2000) < 1000 && d.second == u_eci;
+  });
 }
 
 astro::Roe Navigator::apriori_at(int k, astro::TimeTT t) const {
@@ -253,11 +295,24 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       }
       return;
     }
+    if (e.direct) return;  // already fused as a single detection of this target (kind 2)
     const double sigma = bearing_sigma(e.imp_sigma_rad);
     const Eigen::Matrix3d R_v_from_eci = e.q_cam_from_eci.toRotationMatrix();
     const auto m = sod::bearing_measurement_from_unit_eci(e.t, as.target, e.u_eci, sigma, R_v_from_eci);
     const auto s = f.update_bearing(m);
     if (s.usable) ++local_[static_cast<std::size_t>(as.target)];
+    // A bound track whose bearings the gate keeps refusing has most likely
+    // swapped to another object (two targets crossing a few pixels apart):
+    // it is unbound and goes through the association again, before the
+    // target fails health check (3) and loses its estimate.
+    as.gated_in_row = s.gated ? as.gated_in_row + 1 : 0;
+    if (as.gated_in_row >= opt_.unbind_after_gated) {
+      messages_.push_back("IMP track " + std::to_string(e.track) + " unbound from target " +
+                          target_ids_[static_cast<std::size_t>(as.target)] + ": " +
+                          std::to_string(as.gated_in_row) + " successive bearings refused by the gate");
+      as = Association{};
+      as.last = e.t;
+    }
   }
   check_health();
 }
@@ -325,6 +380,15 @@ void Navigator::process_remote(const std::vector<Event>& group) {
       ++remote_assigned_;
       const int body = to >= 0 ? to : from;  // the target whose relative orbit it measures
       if (body >= 0) ++remote_[static_cast<std::size_t>(body)];
+      LinkWatch& w = links_[sender];
+      const Event& e = group[j];
+      if (e.since_gap > 0 && w.reported_gap < e.gap) {
+        w.reported_gap = e.gap;
+        messages_.push_back("ISL: remote bearings from " + sender + " fused again, from its broadcast " +
+                            std::to_string(e.seq) + " (received " + std::to_string(e.since_gap) +
+                            (e.since_gap == 1 ? "st" : e.since_gap == 2 ? "nd" : e.since_gap == 3 ? "rd" : "th") +
+                            " after the silence)");
+      }
     }
   }
   check_health();
@@ -354,7 +418,12 @@ void Navigator::check_health() {
 }
 
 void Navigator::advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Samus& samus) {
-  const astro::TimeTT limit = std::max(t_safe, t_now.plus_seconds(-opt_.max_lag_s));
+  astro::TimeTT limit = std::max(t_safe, t_now.plus_seconds(-opt_.max_lag_s));
+  if (fuse_remote_) limit = std::min(limit, t_now.plus_seconds(-opt_.remote_hold_s));
+  process_until(limit, samus);
+}
+
+void Navigator::process_until(astro::TimeTT limit, const imp::Samus& samus) {
   std::stable_sort(queue_.begin(), queue_.end(), [](const Event& a, const Event& b) {
     return std::tie(a.t, a.kind, a.track) < std::tie(b.t, b.kind, b.track);
   });
@@ -377,7 +446,7 @@ void Navigator::advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Sa
 }
 
 void Navigator::finish(const imp::Samus& samus) {
-  advance(astro::TimeTT{std::numeric_limits<std::int64_t>::max()}, astro::TimeTT{0}, samus);
+  process_until(astro::TimeTT{std::numeric_limits<std::int64_t>::max()}, samus);
 }
 
 NavReport Navigator::report(astro::TimeTT t) const {
@@ -406,10 +475,11 @@ NavReport Navigator::report(astro::TimeTT t) const {
 
 std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
                                                              const std::vector<int>& taken,
-                                                             const Eigen::Quaterniond& q_cam_from_eci,
                                                              const astro::StateVector& observer_eci,
                                                              const imp::Samus& samus) {
   std::vector<std::pair<int, int>> used;
+  // SAMUS releases a track's measurements at most dbscan_frames + n_scan frames late.
+  while (!direct_.empty() && astro::seconds_between(direct_.front().first, t) > 4.0 * 3600.0) direct_.pop_front();
   if (!filter_ || reinit_pending_ || candidates.empty()) return used;
   sod::SodFilter f = *filter_;
   if (f.epoch() < t && !f.time_update(t).usable) return used;
@@ -433,11 +503,7 @@ std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, co
   const double ambig2 = up_.tuning.sod.eps_ambig * up_.tuning.sod.eps_ambig;
   for (std::size_t k = 0; k < K; ++k) {
     if (!have[k] || !(width[k] < opt_.direct_max_sigma_rad)) continue;
-    bool tracked = false;
-    for (const auto& [tid, as] : tracks_) {
-      if (as.target == static_cast<int>(k) && astro::seconds_between(as.last, t) < 1800.0) tracked = true;
-    }
-    if (tracked) continue;
+    if (tracked(static_cast<int>(k), t)) continue;
     int hit = -1, hits = 0;
     for (std::size_t c = 0; c < C; ++c) {
       if (std::find(taken.begin(), taken.end(), static_cast<int>(c)) != taken.end()) continue;
@@ -451,17 +517,56 @@ std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, co
       ++hits;
     }
     if (hits != 1) continue;
-    Event e;
-    e.t = t;
-    e.kind = 2;
-    e.track = static_cast<int>(k);
-    e.u_eci = candidates[static_cast<std::size_t>(hit)].u_eci;
-    e.q_cam_from_eci = q_cam_from_eci;
-    e.imp_sigma_rad = candidates[static_cast<std::size_t>(hit)].sigma_rad;
-    queue_.push_back(e);
     used.emplace_back(hit, static_cast<int>(k));
   }
   return used;
+}
+
+bool Navigator::tracked(int k, astro::TimeTT t) const {
+  return std::any_of(tracks_.begin(), tracks_.end(), [&](const auto& kv) {
+    return kv.second.target == k && astro::seconds_between(kv.second.last, t) < 1800.0;
+  });
+}
+
+std::vector<Navigator::PixelRegion> Navigator::untracked_regions(astro::TimeTT t, const PixelOf& pixel_of) const {
+  std::vector<PixelRegion> out;
+  if (!filter_ || reinit_pending_) return out;
+  sod::SodFilter f = *filter_;
+  if (f.epoch() < t && !f.time_update(t).usable) return out;
+  for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
+    if (tracked(k, t)) continue;
+    // Unscented transform of [observer QNS; target ROE] through the pixel of the line of sight.
+    const int off = f.layout().target_offset(k);
+    Eigen::VectorXd mean(12);
+    mean << f.state().segment<6>(0), f.state().segment<6>(off);
+    Eigen::MatrixXd P(12, 12);
+    const auto& C = f.covariance();
+    P << C.block(0, 0, 6, 6), C.block(0, off, 6, 6), C.block(off, 0, 6, 6), C.block(off, off, 6, 6);
+    const Eigen::LLT<Eigen::MatrixXd> llt(P * 12.0);
+    if (llt.info() != Eigen::Success) continue;
+    const Eigen::MatrixXd L = llt.matrixL();
+    std::vector<Eigen::Vector2d> pts;
+    for (Eigen::Index i = 0; i < 12 && pts.size() == static_cast<std::size_t>(2 * i); ++i) {
+      for (const double sgn : {1.0, -1.0}) {
+        const Eigen::VectorXd x = mean + sgn * L.col(i);
+        const auto o = astro::QnsElements::from_vector(x.head<6>());
+        const auto tq = astro::qns_from_roe(o, astro::Roe::from_vector(x.tail<6>()));
+        const auto px = pixel_of((astro::cartesian_from_qns(tq).r_m - astro::cartesian_from_qns(o).r_m).normalized());
+        if (px) pts.push_back(*px);
+      }
+    }
+    if (pts.size() != 24) continue;  // partly off the sensor
+    PixelRegion r;
+    r.target = k;
+    r.px.setZero();
+    for (const auto& p : pts) r.px += p;
+    r.px /= 24.0;
+    r.cov_px2.setZero();
+    for (const auto& p : pts) r.cov_px2 += (p - r.px) * (p - r.px).transpose();
+    r.cov_px2 /= 24.0;
+    out.push_back(r);
+  }
+  return out;
 }
 
 std::vector<imp::TargetPrediction> Navigator::predictions(astro::TimeTT t, const imp::Samus& samus) const {

@@ -7,7 +7,8 @@
 // Timing: SAMUS decides measurements n_scan frames late, so the filter runs
 // behind the clock: events (GNSS fixes, bearings) are queued and processed in
 // time order up to a safe time (the latest decided frame, or the clock minus
-// max_lag_s); a bearing older than the filter epoch when it arrives (the first
+// max_lag_s; in mode 3 also at least remote_hold_s behind the clock, so
+// remote bearings arrive in time); a bearing older than the filter epoch when it arrives (the first
 // measurements of a track that DBSCAN just started) is counted late and
 // skipped. Telemetry at a step is the filter state predicted to the step time.
 //
@@ -39,6 +40,7 @@
 
 #include <Eigen/Geometry>
 #include <deque>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -52,9 +54,21 @@ namespace artms::observer {
 
 struct NavigatorOptions {
   double max_lag_s = 600.0;
+  // Navigation mode 3: the filter stays at least this far behind the clock,
+  // so that a remote bearing reaches the queue before the filter passes its
+  // epoch. < 0: from the uplink, the oldest a remote bearing can be when it
+  // arrives: the sender's SAMUS decision lag (a track DBSCAN starts reports
+  // measurements up to dbscan_frames + n_scan frames old, at the swarm's
+  // longest cadence) + one ISL period + the link latency + two steps (the
+  // sender holds a frame one step, the receiver takes a relayed broadcast at
+  // the step after the emulator relayed it).
+  double remote_hold_s = -1.0;
   int association_min_measurements = 3;
   double association_max_d2 = 16.0;
   double association_ambiguity = 4.0;
+  // A bound track is unbound after this many successive gated bearings
+  // (fewer than the health check's max_large_residuals).
+  int unbind_after_gated = 3;
   double aided_max_dlambda_fraction = 0.02;  // SOD-aided SAMUS once a*dlambda 1-sigma < 2 % of range
   double direct_gate_chi2 = 9.21;            // 2 dof, 99 %: single detections of untracked targets
   double direct_max_sigma_rad = 300.0 * 4.84813681109536e-6;  // widest validity region (RSS 1-sigma) used
@@ -71,6 +85,7 @@ struct RemoteBearing {
 };
 struct RemoteBroadcast {
   std::string sender;
+  std::uint32_t seq = 0;  // the sender's broadcast sequence number
   astro::TimeTT t;
   astro::StateVector x_eci;                                         // sender's absolute orbit estimate
   Eigen::Matrix<double, 6, 6> P_rv = Eigen::Matrix<double, 6, 6>::Zero();
@@ -123,14 +138,35 @@ class Navigator {
   // prediction, computed via an unscented transform"): for every target with
   // no active bound track (a faint, rarely detected one), the candidate of
   // this frame inside the 99 % validity region of its predicted measurement,
-  // if exactly one is, is queued as a bearing of that target. Returns
-  // (candidate index, target index) of each assignment.
+  // if exactly one is, is that target's. Returns (candidate index, target
+  // index) of each assignment; the caller queues the ones it confirms with
+  // add_direct (the observer first checks that the candidate is not a faint
+  // star, by looking at its inertial direction in the next frame).
   // Candidates a SAMUS track took (`taken`) are skipped, and so is a
   // candidate that lies within the ambiguity distance (eps_ambig) of another
   // target's prediction.
   std::vector<std::pair<int, int>> assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
-                                    const std::vector<int>& taken, const Eigen::Quaterniond& q_cam_from_eci,
-                                    const astro::StateVector& observer_eci, const imp::Samus& samus);
+                                    const std::vector<int>& taken, const astro::StateVector& observer_eci,
+                                    const imp::Samus& samus);
+  // A single detection of target `target` (index) confirmed by the caller.
+  void add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci,
+                  double imp_sigma_rad);
+  // Validity regions in pixels of the targets assign_untracked would
+  // consider (no active bound track) at frame time t, for SOD-aided
+  // detection (imp::FrameProcessor::aided_candidate): the unscented
+  // transform of the filter state through pixel_of (a unit line of sight,
+  // ECI, to a pixel of this frame; nullopt off the sensor).
+  struct PixelRegion {
+    int target = -1;
+    Eigen::Vector2d px = Eigen::Vector2d::Zero();
+    Eigen::Matrix2d cov_px2 = Eigen::Matrix2d::Identity();
+  };
+  using PixelOf = std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector3d&)>;
+  [[nodiscard]] std::vector<PixelRegion> untracked_regions(astro::TimeTT t, const PixelOf& pixel_of) const;
+  // True when (t, u_eci) was assigned by assign_untracked: SAMUS may later
+  // release the same candidate in a track (DBSCAN clusters it), and it must
+  // not be fused, nor broadcast, twice.
+  [[nodiscard]] bool direct_assigned(astro::TimeTT t, const Eigen::Vector3d& u_eci) const;
   // SOD-aided SAMUS: predictions at t for tracks bound to converged targets.
   [[nodiscard]] std::vector<imp::TargetPrediction> predictions(astro::TimeTT t, const imp::Samus& samus) const;
 
@@ -152,12 +188,25 @@ class Navigator {
     astro::Vec3 sender_r_eci_m = astro::Vec3::Zero();
     astro::Mat3 sender_P_r_m2 = astro::Mat3::Zero();
     bool sender_position_valid = false;
+    // kind 3: which silence of the sender's link it follows (LinkWatch) and
+    // the broadcast's number after it (0: not after a silence).
+    int gap = 0;
+    int since_gap = 0;
+    std::uint32_t seq = 0;  // kind 3: the sender's broadcast sequence number
+    bool direct = false;    // kind 1: the same candidate was assigned as kind 2 (fused once only)
+  };
+  struct LinkWatch {
+    std::optional<astro::TimeTT> last;  // the latest broadcast received
+    int gap = 0;                        // silences seen so far
+    int since_gap = 0;                  // broadcasts since the latest silence (0: none yet)
+    int reported_gap = 0;               // the latest silence after which fusion resumed
   };
   struct Association {
     std::vector<double> d2_sum;
     int n = 0;
     int target = -1;
     astro::TimeTT last;
+    int gated_in_row = 0;  // successive bearings of the bound track refused by the gate
   };
 
   const config::ObserverUplink& up_;
@@ -175,12 +224,18 @@ class Navigator {
   std::size_t remote_broadcasts_ = 0;
   bool fuse_remote_ = false;             // navigation mode 3
   std::vector<std::string> senders_;
+  std::map<std::string, LinkWatch> links_;
+  std::deque<std::pair<astro::TimeTT, Eigen::Vector3d>> direct_;  // kind-2 assignments of the last hours
   const dynamics::GveRk4Propagator onboard_;
   std::size_t remote_assigned_ = 0, remote_unassigned_ = 0, remote_late_ = 0;
   std::vector<std::uint32_t> remote_;
   std::vector<std::string> messages_;
 
+  static Event bearing_event(astro::TimeTT t, int kind, int track, const Eigen::Vector3d& u_eci,
+                             const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad);
   void process(const Event& e, const imp::Samus& samus);
+  // Every queued event with t <= limit, in time order.
+  void process_until(astro::TimeTT limit, const imp::Samus& samus);
   // Remote bearings of one sender at one epoch: the paper's three
   // assignment conditions on the Mahalanobis distances sigma_jk, then the
   // updates.
@@ -195,6 +250,8 @@ class Navigator {
   // Unscented prediction of target k's tracking-plane coordinates from the
   // filter state (at the filter epoch).
   bool predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const;
+  // A target has an active bound SAMUS track (its last bearing < 30 min before t).
+  [[nodiscard]] bool tracked(int k, astro::TimeTT t) const;
 };
 
 }  // namespace artms::observer

@@ -4,8 +4,8 @@
 # crashes; every filter stays healthy on local data through the outage
 # (health 0 on every step); per link sent = delivered + dropped exactly, with
 # outage drops; after the outage every observer receives broadcasts again
-# within two broadcast periods, and remote measurements are fused again (the
-# delay, which includes IMP's decision lag, is printed).
+# within two broadcast periods, and the first broadcast after the outage that
+# carries bearings is fused on every link.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -39,19 +39,36 @@ for obs in s["observers"]:
     first = next(t for r, t in zip(rows, ts) if t > end and int(r["isl_received"]) > before)
     print(f"  {obs}: healthy on all {len(rows)} steps; broadcasts again {first - end:.0f} s after the outage")
     assert first - end <= 2 * period + 60, f"{obs}: broadcasts resumed only {first - end:.0f} s after the outage"
-# Remote measurements fused again after the outage (eval/targets.csv, cumulative counts).
-rem = {}
-for r in csv.DictReader(open(f"{run}/eval/targets.csv")):
-    t = (int(r["t_tt_ns"]) - t0) / NS
-    rem.setdefault((r["observer"], r["target"]), []).append((t, int(r["remote_measurements"])))
-for key, v in sorted(rem.items()):
-    at_end = max(n for t, n in v if t <= end)
-    after = [t for t, n in v if t > end and n > at_end]
-    during = max(n for t, n in v if t <= end) - max(n for t, n in v if t <= start)
-    if after:
-        print(f"  {key[0]}->{key[1]}: {during} remote bearings fused during the outage (late ones), fused again {after[0] - end:.0f} s after it")
-    else:
-        print(f"  {key[0]}->{key[1]}: no remote bearing after the outage")
-assert sum(1 for v in rem.values() if any(t > end and n > max(m for u, m in v if u <= end) for t, n in v)) >= 4
+# Remote measurements fused again after the outage. Per directed link, the
+# first broadcast delivered after the outage that carries bearings (isl.csv)
+# must be the one whose bearings the receiver fuses first after the silence
+# (the observer's event "ISL: remote bearings from X fused again, from its
+# broadcast N"); its number among the broadcasts sent after the outage is
+# printed (the sender's own images decide when it has bearings to send).
+import re
+end_ns = t0 + int(end * NS)
+first_with = {}
+sent_after = {}
+for r in csv.DictReader(open(f"{run}/isl.csv")):
+    link = (r["sender"], r["receiver"])
+    if int(r["t_sent_tt_ns"]) >= end_ns:
+        sent_after.setdefault(link, []).append(int(r["sequence"]))
+    if r["status"] == "delivered" and int(r["t_tt_ns"]) >= end_ns and int(r["measurements"]) > 0:
+        first_with.setdefault(link, int(r["sequence"]))
+fused = {}
+for line in open(f"{run}/events.log"):
+    m = re.search(r"\[observer-(\w+)\] info: ISL: remote bearings from (\w+) fused again, from its broadcast (\d+)", line)
+    if m:
+        fused[(m.group(2), m.group(1))] = int(m.group(3))
+for link in sorted(first_with):
+    assert link in fused, f"{link}: no remote bearing fused after the outage"
+    k = sorted(set(sent_after[link])).index(first_with[link]) + 1 if first_with[link] in sent_after[link] else 0
+    print(f"  {link[0]}->{link[1]}: first broadcast with bearings after the outage: {first_with[link]} "
+          f"({k}. sent after it); fusion resumed with broadcast {fused[link]}")
+    assert fused[link] == first_with[link], f"{link}: its first bearings after the outage were not fused"
+assert len(first_with) == 6, first_with
+late = [int(m.group(1)) for m in re.finditer(r"remote bearings \d+ fused, \d+ not assigned, (\d+) too late", open(f"{run}/events.log").read())]
+print(f"  remote bearings too late for the filter: {late}")
+assert len(late) == 3 and max(late) <= 5, late
 print("swarm multi outage: ok")
 PY

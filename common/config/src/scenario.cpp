@@ -1143,12 +1143,13 @@ class Parser {
     constexpr std::int64_t kBig = std::numeric_limits<int>::max();
     if (const Val* iv = m.find("imp")) {
       Map im(ctx_, *iv,
-             {"detection_sigma", "dbscan_min_points", "dbscan_radius_px", "dbscan_frames"});
+             {"detection_sigma", "dbscan_min_points", "dbscan_radius_px", "dbscan_frames", "aided_detection_snr"});
       if (im.ok()) {
         number_field(ctx_, im, "detection_sigma", t.imp.detection_sigma, positive());
         int_field(ctx_, im, "dbscan_min_points", t.imp.dbscan_min_points, 1, kBig);
         number_field(ctx_, im, "dbscan_radius_px", t.imp.dbscan_radius_px, positive(), "px");
         int_field(ctx_, im, "dbscan_frames", t.imp.dbscan_frames, 1, kBig);
+        number_field(ctx_, im, "aided_detection_snr", t.imp.aided_detection_snr, non_negative("0 = off"));
       }
     }
     if (const Val* bv = m.find("bod")) {

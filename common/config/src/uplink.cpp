@@ -1,5 +1,6 @@
 #include "artms/config/uplink.hpp"
 
+#include <algorithm>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -25,6 +26,8 @@ ObserverUplink make_uplink(const Scenario& s, const std::string& spacecraft) {
   u.tuning = s.tuning;
   u.crosslink_enabled = s.crosslink.enabled;
   u.isl_period_s = s.crosslink.period_s;
+  u.isl_latency_s = s.crosslink.latency_s;
+  for (const auto& o : s.observers) u.swarm_max_cadence_s = std::max(u.swarm_max_cadence_s, o.camera.cadence_s);
   u.use_remote_gnss = s.crosslink.use_remote_gnss;
   for (const auto& sc : s.spacecraft) u.swarm_ids.push_back(sc.id);
   return u;
@@ -68,7 +71,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
          {{"detection_sigma", u.tuning.imp.detection_sigma},
           {"dbscan_min_points", u.tuning.imp.dbscan_min_points},
           {"dbscan_radius_px", u.tuning.imp.dbscan_radius_px},
-          {"dbscan_frames", u.tuning.imp.dbscan_frames}}},
+          {"dbscan_frames", u.tuning.imp.dbscan_frames},
+          {"aided_detection_snr", u.tuning.imp.aided_detection_snr}}},
         {"bod",
          {{"period_s", u.tuning.bod.period_s}, {"samples", u.tuning.bod.samples},
           {"max_iterations", u.tuning.bod.max_iterations}}},
@@ -83,6 +87,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"process_noise_scale", u.tuning.sod.process_noise_scale}}}}},
       {"crosslink",
        {{"enabled", u.crosslink_enabled}, {"period_s", u.isl_period_s},
+        {"latency_s", u.isl_latency_s}, {"swarm_max_cadence_s", u.swarm_max_cadence_s},
         {"use_remote_gnss", u.use_remote_gnss}}},
       {"swarm_ids", u.swarm_ids},
       {"camera_calibration",
@@ -152,6 +157,7 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.imp.dbscan_min_points = t.at("imp").at("dbscan_min_points").get<int>();
     u.tuning.imp.dbscan_radius_px = t.at("imp").at("dbscan_radius_px").get<double>();
     u.tuning.imp.dbscan_frames = t.at("imp").at("dbscan_frames").get<int>();
+    u.tuning.imp.aided_detection_snr = t.at("imp").at("aided_detection_snr").get<double>();
     u.tuning.bod.period_s = t.at("bod").at("period_s").get<double>();
     u.tuning.bod.samples = t.at("bod").at("samples").get<int>();
     u.tuning.bod.max_iterations = t.at("bod").at("max_iterations").get<int>();
@@ -168,6 +174,8 @@ ObserverUplink read_uplink(const std::string& path) {
     const auto& c = j.at("crosslink");
     u.crosslink_enabled = c.at("enabled").get<bool>();
     u.isl_period_s = c.at("period_s").get<double>();
+    u.isl_latency_s = c.at("latency_s").get<double>();
+    u.swarm_max_cadence_s = c.at("swarm_max_cadence_s").get<double>();
     u.use_remote_gnss = c.at("use_remote_gnss").get<bool>();
     u.swarm_ids = j.at("swarm_ids").get<std::vector<std::string>>();
     if (j.contains("camera_calibration")) {

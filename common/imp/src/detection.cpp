@@ -76,6 +76,9 @@ void DetectionOptions::validate() const {
   auto bad = [](const std::string& what) {
     throw std::invalid_argument("DetectionOptions: " + what);
   };
+  if (!(centroid_sigma_floor_px >= 0.0) || !std::isfinite(centroid_sigma_floor_px)) {
+    bad("centroid_sigma_floor_px must be finite and >= 0");
+  }
   if (!(threshold_sigma > 0.0) || !std::isfinite(threshold_sigma)) {
     bad("threshold_sigma must be positive");
   }
@@ -489,6 +492,10 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
     const int npx = static_cast<int>(comp.size());
     if (npx < o.min_pixels) {
       ++res.rejected_single_pixel;
+      if (npx == 1) {
+        const int x = static_cast<int>(comp[0] % W), y = static_cast<int>(comp[0] / W);
+        if (f.signal(x, y) >= 10.0 * grid.at(grid.noise, x, y)) res.hot_suspects.push_back(comp[0]);
+      }
       continue;
     }
     if (npx > o.max_pixels) {
@@ -508,6 +515,7 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
         if (s > o.max_sharpness * nmean) f.mask.emplace_back(k, std::max(nmean, 0.0));
       }
       res.masked_hot_pixels += static_cast<int>(f.mask.size());
+      for (const auto& m : f.mask) res.hot_suspects.push_back(m.first);
       if (npx - static_cast<int>(f.mask.size()) < o.min_pixels) {
         ++res.rejected_sharp;
         continue;
@@ -636,7 +644,8 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
       const double b_e2 = std::pow(noise_c * o.gain_e_per_dn, 2);
       const double s2 = s_psf * s_psf;
       c.sigma_px = n_e > 0.0
-                       ? std::sqrt(s2 / n_e + 8.0 * std::numbers::pi * s2 * s2 * b_e2 / (n_e * n_e))
+                       ? std::sqrt(s2 / n_e + 8.0 * std::numbers::pi * s2 * s2 * b_e2 / (n_e * n_e) +
+                                   o.centroid_sigma_floor_px * o.centroid_sigma_floor_px)
                        : static_cast<double>(half);
       res.centroids.push_back(c);
     }

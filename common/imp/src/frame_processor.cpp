@@ -15,6 +15,8 @@ void PersistenceOptions::validate() const {
   if (hot_pixel_min_repeats < 1) bad("hot_pixel_min_repeats");
   if (!(hot_pixel_min_age_s >= 0.0)) bad("hot_pixel_min_age_s");
   if (!(star_tolerance_rad > 0.0)) bad("star_tolerance_rad");
+  if (hot_map_min_frames < 1) bad("hot_map_min_frames");
+  if (!(hot_map_radius_px >= 0.0)) bad("hot_map_radius_px");
   if (history_frames < 1) bad("history_frames");
   if (!(history_max_age_s > 0.0)) bad("history_max_age_s");
 }
@@ -38,6 +40,16 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
   FrameSummary out;
   const DetectionResult det = detect(pixels, K_.width, K_.height, opt_.detection);
   out.detections = static_cast<int>(det.centroids.size());
+  last_ = Last{};
+  last_.t_s = t_s;
+  last_.noise_dn = det.noise_dn;
+  for (const auto& c : det.centroids) last_.detections_px.emplace_back(c.x_px, c.y_px);
+  for (const std::size_t k : det.hot_suspects) {
+    if (++hot_counts_[k] == opt_.persistence.hot_map_min_frames) {
+      hot_known_px_.emplace_back(static_cast<double>(k % static_cast<std::size_t>(K_.width)),
+                                 static_cast<double>(k / static_cast<std::size_t>(K_.width)));
+    }
+  }
   // Brightest first (Pyramid uses the first max_stars).
   std::vector<std::size_t> order(det.centroids.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
@@ -93,6 +105,9 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
   std::vector<bool> is_star(order.size(), false);
   for (const auto& [idx, cat] : id.matches) is_star[static_cast<std::size_t>(idx)] = true;
   const Eigen::Matrix3d R_eci_from_cam = out.q_cam_from_eci.toRotationMatrix().transpose();
+  last_.attitude_usable = true;
+  last_.attitude_sigma_rad = out.attitude_sigma_rad;
+  last_.R_eci_from_cam = R_eci_from_cam;
   // Forget frames beyond the history window.
   while (!history_.empty() && (static_cast<int>(history_.size()) >= opt_.persistence.history_frames ||
                                t_s - history_.front().t_s > opt_.persistence.history_max_age_s)) {
@@ -141,6 +156,12 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
       ++out.uncatalogued_stars_removed;
       continue;
     }
+    const Eigen::Vector2d cp(c.x_px, c.y_px);
+    if (std::any_of(hot_known_px_.begin(), hot_known_px_.end(),
+                    [&](const Eigen::Vector2d& h) { return (h - cp).norm() < P.hot_map_radius_px; })) {
+      ++out.hot_pixels_removed;
+      continue;
+    }
     if (repeats >= P.hot_pixel_min_repeats && old_enough) {
       ++out.hot_pixels_removed;
       continue;
@@ -149,6 +170,56 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
   }
   history_.push_back(std::move(now));
   return out;
+}
+
+std::optional<bool> FrameProcessor::source_at(std::span<const std::uint16_t> pixels, const Eigen::Vector3d& u_eci,
+                                              const AidedDetectionOptions& options, double tolerance_px) const {
+  if (!last_.attitude_usable) return std::nullopt;
+  const auto px = K_.project(last_.R_eci_from_cam.transpose() * u_eci);
+  if (!px || px->x() < 8.0 || px->y() < 8.0 || px->x() > K_.width - 9.0 || px->y() > K_.height - 9.0)
+    return std::nullopt;
+  for (const auto& d : last_.detections_px) {
+    if ((d - *px).norm() <= tolerance_px + 1.0) return true;
+  }
+  AidedDetectionOptions o = options;
+  o.min_separation_px = 0.0;
+  const auto a = detect_near_prediction(pixels, K_.width, K_.height, *px,
+                                        tolerance_px * tolerance_px * Eigen::Matrix2d::Identity(), last_.noise_dn, {}, o);
+  return a.found || a.peaks > 1;
+}
+
+std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::uint16_t> pixels,
+                                                        const Eigen::Vector2d& predicted_px,
+                                                        const Eigen::Matrix2d& cov_px2,
+                                                        const AidedDetectionOptions& options, std::string* why) {
+  auto refuse = [&](const std::string& reason) -> std::optional<Candidate> {
+    if (why) *why = reason;
+    return std::nullopt;
+  };
+  if (!last_.attitude_usable) return refuse("no attitude");
+  std::vector<Eigen::Vector2d> avoid = last_.detections_px;
+  avoid.insert(avoid.end(), hot_known_px_.begin(), hot_known_px_.end());
+  const AidedDetection a = detect_near_prediction(pixels, K_.width, K_.height, predicted_px, cov_px2, last_.noise_dn,
+                                                  avoid, options);
+  if (!a.found) return refuse(a.why);
+  Candidate cand;
+  cand.x_px = a.centroid.x_px;
+  cand.y_px = a.centroid.y_px;
+  cand.flux_dn = a.centroid.flux_dn;
+  cand.u_cam = K_.unproject({a.centroid.x_px, a.centroid.y_px});
+  cand.u_eci = (last_.R_eci_from_cam * cand.u_cam).normalized();
+  cand.sigma_rad = std::hypot(a.centroid.sigma_px / K_.fx, last_.attitude_sigma_rad);
+  const auto& P = opt_.persistence;
+  while (!aided_seen_.empty() && last_.t_s - aided_seen_.front().first > P.history_max_age_s) aided_seen_.pop_front();
+  const double cos_star = std::cos(P.star_tolerance_rad);
+  bool star = false;
+  for (const auto& [t, u] : aided_seen_) {
+    if (t < last_.t_s && u.dot(cand.u_eci) > cos_star) star = true;
+  }
+  aided_seen_.emplace_back(last_.t_s, cand.u_eci);
+  if (star) return refuse("a faint star (same inertial direction as an earlier aided detection)");
+  if (why) why->clear();
+  return cand;
 }
 
 }  // namespace artms::imp

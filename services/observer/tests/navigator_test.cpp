@@ -5,6 +5,9 @@
 // from a stale a-priori to convergence; a clutter bearing is never assigned.
 #include <gtest/gtest.h>
 
+#include <deque>
+#include <utility>
+
 #include <random>
 
 #include "navigator.hpp"
@@ -44,16 +47,21 @@ config::ObserverUplink uplink(const Truth& truth, int mode, std::mt19937_64& rng
 
 struct Outcome {
   astro::Vec6 err0, err1, sig0, sig1;
-  std::size_t assigned, unassigned;
+  std::size_t assigned, unassigned, late;
 };
 
-Outcome run(int mode, bool clutter) {
+// delay_s: the broadcast of minute k carries the bearings of minute k -
+// delay_s/60 (a sender's decision lag); remote_hold_s: NavigatorOptions.
+Outcome run(int mode, bool clutter, int delay_min = 0, double remote_hold_s = -1.0) {
   auto a_roe = starling_a_roe_m();
   a_roe.resize(2);  // SV2 (target 0, the remote observer) and SV3 (target 1)
   Truth truth(kT0, observer_at_start(), a_roe);
   std::mt19937_64 rng(11);
   const config::ObserverUplink up = uplink(truth, mode, rng);
-  Navigator nav(up, j2_forces());
+  NavigatorOptions options;
+  options.remote_hold_s = remote_hold_s;
+  Navigator nav(up, j2_forces(), options);
+  std::deque<std::vector<RemoteBearing>> delayed;
   const imp::Samus samus;
   std::normal_distribution<double> g(0.0, 1.0);
   const double s = 10 * astro::kArcsecToRad;
@@ -78,9 +86,15 @@ Outcome run(int mode, bool clutter) {
       const Eigen::Vector3d u = (truth.target_eci(1).r_m - truth.target_eci(0).r_m).normalized();
       b.bearings.push_back({t, "SV2-9", (u + 0.035 * u.unitOrthogonal()).normalized(), s});
     }
+    delayed.push_back(std::exchange(b.bearings, {}));
+    if (static_cast<int>(delayed.size()) > delay_min) {
+      b.bearings = std::move(delayed.front());
+      delayed.pop_front();
+    }
     nav.add_remote(b);
     nav.advance(t, t, samus);
   }
+  nav.finish(samus);  // mode 3 holds the filter remote_hold_s behind the clock
   const NavReport r = nav.report(truth.t());
   const double a = truth.observer().a_m;
   Outcome o;
@@ -90,6 +104,7 @@ Outcome run(int mode, bool clutter) {
   o.sig1 = a * r.targets[1].P_roe.diagonal().cwiseSqrt();
   o.assigned = nav.remote_assigned();
   o.unassigned = nav.remote_unassigned();
+  o.late = nav.remote_late();
   return o;
 }
 
@@ -107,6 +122,20 @@ TEST(NavigatorMode3, RemoteBearingsAssignedAndFused) {
   }
   EXPECT_LT(o.sig0[1], 1000.0);  // from 3 km a-priori
   EXPECT_LT(o.sig1[1], 1000.0);
+}
+
+// Remote bearings arrive up to a decision lag late; the filter stays
+// remote_hold_s behind the clock so that none is too late for it. Here the
+// uplink's default hold is (n_scan + dbscan_frames) x 0 s cadence + 60 s ISL
+// period + 2 x 60 s steps = 180 s, and the bearings arrive 3 minutes old.
+TEST(NavigatorMode3, RemoteHoldKeepsDelayedBearings) {
+  const Outcome held = run(3, false, 3);
+  EXPECT_EQ(held.late, 0u);
+  EXPECT_GT(held.assigned, 2u * 500u);
+  // Without the hold the filter runs at the clock: every delayed bearing is late.
+  const Outcome not_held = run(3, false, 3, 0.0);
+  EXPECT_GT(not_held.late, 2u * 560u);
+  EXPECT_EQ(not_held.assigned, 0u);
 }
 
 TEST(NavigatorMode3, Mode1IgnoresRemoteBearings) {

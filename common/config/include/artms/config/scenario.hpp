@@ -120,6 +120,9 @@ struct ImpTuning {
   int dbscan_min_points = 3;         // n_D
   double dbscan_radius_px = 20.0;    // eps_D (SCHEMA.md: why 20)
   int dbscan_frames = 5;             // frames of unassigned candidates clustered
+  // SOD-aided detection of untracked faint targets (matched-filter SNR in
+  // the validity region, imp/aided_detection.hpp; not in the paper); 0: off.
+  double aided_detection_snr = 5.5;
 };
 struct BodTuning {
   double period_s = 5400.0;          // 90 minutes (paper, "Flight Operations")

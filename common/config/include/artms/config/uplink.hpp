@@ -48,6 +48,11 @@ struct ObserverUplink {
   ArtmsTuning tuning;
   bool crosslink_enabled = true;
   double isl_period_s = 60.0;
+  double isl_latency_s = 0.0;          // crosslink latency (scenario crosslink.latency)
+  // Longest camera cadence of any observer of the swarm (the ground's
+  // configuration, not truth): with IMP's decision lag it bounds how old a
+  // remote bearing can be when it arrives (navigator.hpp, remote hold).
+  double swarm_max_cadence_s = 0.0;
   bool use_remote_gnss = false;
   std::vector<std::string> swarm_ids;  // every spacecraft id (no orbits)
   CameraCalibration camera_calibration;

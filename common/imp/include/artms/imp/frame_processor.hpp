@@ -17,8 +17,10 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
+#include "artms/imp/aided_detection.hpp"
 #include "artms/imp/detection.hpp"
 #include "artms/imp/star_id.hpp"
 
@@ -45,6 +47,15 @@ struct PersistenceOptions {
   // of an object of an earlier frame (stars do not move inertially; a target
   // in a similar orbit turns with the orbit, ~4 deg/min in LEO).
   double star_tolerance_rad = 30.0 * 4.84813681109536e-6;
+  // Learned hot-pixel map: a pixel that looked hot (DetectionResult::
+  // hot_suspects: a lone sharp pixel, not part of any source) in at least
+  // hot_map_min_frames frames is a known hot pixel; a candidate within
+  // hot_map_radius_px of one is removed. A faint target passing next to a
+  // hot pixel forms one component with it, the sharpness test no longer
+  // recognises the pixel, and the centroid is pulled towards it by up to a
+  // pixel and a half with a small sigma.
+  int hot_map_min_frames = 3;
+  double hot_map_radius_px = 2.5;
   // Frames kept for both tests, and their maximum age.
   int history_frames = 12;
   double history_max_age_s = 1800.0;
@@ -78,7 +89,7 @@ struct FrameSummary {
   double attitude_sigma_rad = 0.0; // per-axis 1-sigma across the boresight
   bool used_prior = false;
   int detections = 0;
-  int hot_pixels_removed = 0;
+  int hot_pixels_removed = 0;  // by persistence or the learned hot-pixel map
   int uncatalogued_stars_removed = 0;
   std::vector<Candidate> candidates;  // empty unless attitude_usable
 };
@@ -92,6 +103,23 @@ class FrameProcessor {
   // (any epoch, seconds), used for the history ages only.
   FrameSummary process(std::span<const std::uint16_t> pixels, double t_s);
   [[nodiscard]] const Intrinsics& intrinsics() const { return K_; }
+  // SOD-aided detection (aided_detection.hpp) in the frame process() took
+  // last, which must have had a usable attitude: a candidate near the
+  // predicted pixel, or nullopt with the reason in *why. A source at the
+  // inertial direction of an earlier aided detection is a faint star (stars
+  // do not move inertially, PersistenceOptions.star_tolerance_rad) and is
+  // refused.
+  // Is there a source at inertial direction u_eci in the frame process()
+  // took last (pixels: that frame)? A detection within tolerance_px of its
+  // pixel, or a matched-filter peak there (aided detection with a
+  // tolerance_px region). nullopt: no attitude, or off the sensor. Stars do
+  // not move inertially; a target turns with its orbit (~4 deg/min), so a
+  // source seen again at the same direction a frame later is a star.
+  [[nodiscard]] std::optional<bool> source_at(std::span<const std::uint16_t> pixels, const Eigen::Vector3d& u_eci,
+                                              const AidedDetectionOptions& options, double tolerance_px = 1.0) const;
+  std::optional<Candidate> aided_candidate(std::span<const std::uint16_t> pixels, const Eigen::Vector2d& predicted_px,
+                                           const Eigen::Matrix2d& cov_px2, const AidedDetectionOptions& options,
+                                           std::string* why = nullptr);
 
  private:
   struct Seen {
@@ -105,6 +133,18 @@ class FrameProcessor {
   std::optional<Eigen::Quaterniond> prior_;
   double prior_t_s_ = 0.0;
   std::deque<Seen> history_;
+  // The last frame, for aided_candidate().
+  struct Last {
+    bool attitude_usable = false;
+    double t_s = 0.0;
+    double noise_dn = 0.0;
+    double attitude_sigma_rad = 0.0;
+    Eigen::Matrix3d R_eci_from_cam = Eigen::Matrix3d::Identity();
+    std::vector<Eigen::Vector2d> detections_px;
+  } last_;
+  std::deque<std::pair<double, Eigen::Vector3d>> aided_seen_;
+  std::unordered_map<std::size_t, int> hot_counts_;     // pixel index -> frames it looked hot in
+  std::vector<Eigen::Vector2d> hot_known_px_;          // pixels with hot_map_min_frames or more  // (t_s, u_eci) of earlier aided detections
 };
 
 }  // namespace artms::imp

@@ -1,0 +1,151 @@
+#include "artms/imp/aided_detection.hpp"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace artms::imp {
+
+void AidedDetectionOptions::validate() const {
+  if (!(threshold_snr > 0.0)) throw std::invalid_argument("AidedDetectionOptions.threshold_snr must be > 0");
+  if (!(gate_chi2 > 0.0)) throw std::invalid_argument("AidedDetectionOptions.gate_chi2 must be > 0");
+  if (!(max_half_window_px >= 1.0)) throw std::invalid_argument("AidedDetectionOptions.max_half_window_px must be >= 1");
+  if (!(psf_sigma_px > 0.0)) throw std::invalid_argument("AidedDetectionOptions.psf_sigma_px must be > 0");
+  if (!(gain_e_per_dn > 0.0)) throw std::invalid_argument("AidedDetectionOptions.gain_e_per_dn must be > 0");
+  if (!(centroid_sigma_floor_px >= 0.0)) throw std::invalid_argument("AidedDetectionOptions.centroid_sigma_floor_px must be >= 0");
+  if (!(min_separation_px >= 0.0)) throw std::invalid_argument("AidedDetectionOptions.min_separation_px must be >= 0");
+}
+
+AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int width, int height,
+                                      const Eigen::Vector2d& predicted_px, const Eigen::Matrix2d& cov_px2,
+                                      double noise_dn, const std::vector<Eigen::Vector2d>& detections_px,
+                                      const AidedDetectionOptions& opt) {
+  opt.validate();
+  if (width <= 0 || height <= 0 || pixels.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height))
+    throw std::invalid_argument("detect_near_prediction: pixels.size() != width * height");
+  AidedDetection out;
+  const double s = opt.psf_sigma_px;
+  const Eigen::Matrix2d S = cov_px2 + s * s * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d S_inv = S.inverse();
+  const double reach = std::sqrt(opt.gate_chi2 * S.diagonal().maxCoeff());
+  if (!predicted_px.allFinite() || !S_inv.allFinite() || !(noise_dn > 0.0)) {
+    out.why = "outside";
+    return out;
+  }
+  if (reach > opt.max_half_window_px) {
+    out.why = "too wide";
+    return out;
+  }
+  const int r = static_cast<int>(std::ceil(3.0 * s));  // kernel half-width
+  const int half = static_cast<int>(std::ceil(reach)) + r;
+  const int x0 = std::max(0, static_cast<int>(std::floor(predicted_px.x())) - half);
+  const int x1 = std::min(width - 1, static_cast<int>(std::ceil(predicted_px.x())) + half);
+  const int y0 = std::max(0, static_cast<int>(std::floor(predicted_px.y())) - half);
+  const int y1 = std::min(height - 1, static_cast<int>(std::ceil(predicted_px.y())) + half);
+  if (x1 - x0 < 2 * r + 1 || y1 - y0 < 2 * r + 1) {
+    out.why = "outside";
+    return out;
+  }
+  const int w = x1 - x0 + 1, h = y1 - y0 + 1;
+  auto at = [&](int x, int y) { return static_cast<double>(pixels[static_cast<std::size_t>(y) * width + x]); };
+  // Local background: the window's median.
+  std::vector<double> values;
+  values.reserve(static_cast<std::size_t>(w * h));
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) values.push_back(at(x, y));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+  const double b = values[values.size() / 2];
+  // Unit-norm Gaussian kernel.
+  std::vector<double> G(static_cast<std::size_t>((2 * r + 1) * (2 * r + 1)));
+  double g2 = 0.0;
+  for (int dy = -r; dy <= r; ++dy)
+    for (int dx = -r; dx <= r; ++dx) {
+      const double g = std::exp(-0.5 * (dx * dx + dy * dy) / (s * s));
+      G[static_cast<std::size_t>((dy + r) * (2 * r + 1) + dx + r)] = g;
+      g2 += g * g;
+    }
+  for (double& g : G) g /= std::sqrt(g2);
+  // Matched-filter SNR on the inner window (where the kernel fits).
+  const int iw = w - 2 * r, ih = h - 2 * r;
+  std::vector<double> nu(static_cast<std::size_t>(iw * ih));
+  for (int y = 0; y < ih; ++y)
+    for (int x = 0; x < iw; ++x) {
+      double m = 0.0;
+      for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx)
+          m += G[static_cast<std::size_t>((dy + r) * (2 * r + 1) + dx + r)] *
+               (at(x0 + r + x + dx, y0 + r + y + dy) - b);
+      nu[static_cast<std::size_t>(y * iw + x)] = m / noise_dn;
+    }
+  auto nu_at = [&](int x, int y) { return nu[static_cast<std::size_t>(y * iw + x)]; };
+  // Local maxima above the threshold inside the validity region.
+  int best_x = -1, best_y = -1;
+  double best = 0.0;
+  bool near_detection = false;
+  for (int y = 1; y + 1 < ih; ++y)
+    for (int x = 1; x + 1 < iw; ++x) {
+      const double v = nu_at(x, y);
+      if (!(v >= opt.threshold_snr)) continue;
+      bool peak = true;
+      for (int dy = -1; dy <= 1 && peak; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          if ((dx != 0 || dy != 0) && nu_at(x + dx, y + dy) > v) peak = false;
+      if (!peak) continue;
+      const Eigen::Vector2d px(x0 + r + x, y0 + r + y);
+      const Eigen::Vector2d d = px - predicted_px;
+      if (d.dot(S_inv * d) > opt.gate_chi2) continue;
+      bool near = false;
+      for (const auto& q : detections_px)
+        if ((q - px).norm() < opt.min_separation_px) near = true;
+      if (near) {
+        near_detection = true;
+        continue;
+      }
+      ++out.peaks;
+      if (v > best) {
+        best = v;
+        best_x = x0 + r + x;
+        best_y = y0 + r + y;
+      }
+    }
+  if (out.peaks != 1) {
+    out.why = out.peaks > 1 ? "ambiguous" : (near_detection ? "near a detection" : "none");
+    return out;
+  }
+  // IWCoG around the peak (weights: the PSF at the current estimate).
+  double cx = best_x, cy = best_y;
+  for (int it = 0; it < 20; ++it) {
+    double sw = 0.0, sx = 0.0, sy = 0.0;
+    for (int y = std::max(0, best_y - r); y <= std::min(height - 1, best_y + r); ++y)
+      for (int x = std::max(0, best_x - r); x <= std::min(width - 1, best_x + r); ++x) {
+        const double wgt = std::exp(-0.5 * ((x - cx) * (x - cx) + (y - cy) * (y - cy)) / (s * s)) * (at(x, y) - b);
+        sw += wgt;
+        sx += wgt * x;
+        sy += wgt * y;
+      }
+    if (!(sw > 0.0)) break;
+    const double nx = sx / sw, ny = sy / sw;
+    if (std::hypot(nx - best_x, ny - best_y) > 1.5) break;  // pulled away by noise: keep the peak
+    const bool done = std::hypot(nx - cx, ny - cy) < 1e-4;
+    cx = nx;
+    cy = ny;
+    if (done) break;
+  }
+  double flux = 0.0;
+  for (int y = std::max(0, best_y - r); y <= std::min(height - 1, best_y + r); ++y)
+    for (int x = std::max(0, best_x - r); x <= std::min(width - 1, best_x + r); ++x) flux += at(x, y) - b;
+  const double N = std::max(flux, 1.0) * opt.gain_e_per_dn;
+  out.found = true;
+  out.snr = best;
+  out.centroid.x_px = cx;
+  out.centroid.y_px = cy;
+  out.centroid.flux_dn = flux;
+  out.centroid.peak_dn = at(best_x, best_y) - b;
+  out.centroid.pixels = 1;
+  out.centroid.sigma_px = std::sqrt(2.0 * s * s / (best * best) + s * s / N +
+                                    opt.centroid_sigma_floor_px * opt.centroid_sigma_floor_px);
+  return out;
+}
+
+}  // namespace artms::imp
