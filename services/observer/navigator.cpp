@@ -442,7 +442,19 @@ void Navigator::process_until(astro::TimeTT limit, const imp::Samus& samus) {
     }
     process_remote(group);
   }
+  if (n > 0) ++version_;
   queue_.erase(queue_.begin(), queue_.begin() + static_cast<std::ptrdiff_t>(n));
+}
+
+const sod::SodFilter* Navigator::predicted_to(astro::TimeTT t, bool even_if_unusable) const {
+  if (!filter_) return nullptr;
+  if (!predicted_ || predicted_version_ != version_ || predicted_t_ != t) {
+    predicted_.emplace(*filter_);
+    predicted_usable_ = !(predicted_->epoch() < t) || predicted_->time_update(t).usable;
+    predicted_version_ = version_;
+    predicted_t_ = t;
+  }
+  return predicted_usable_ || even_if_unusable ? &*predicted_ : nullptr;
 }
 
 void Navigator::finish(const imp::Samus& samus) {
@@ -452,8 +464,8 @@ void Navigator::finish(const imp::Samus& samus) {
 NavReport Navigator::report(astro::TimeTT t) const {
   NavReport r;
   if (!filter_) return r;
-  sod::SodFilter f = *filter_;
-  if (f.epoch() < t) (void)f.time_update(t);
+  const sod::SodFilter* fp = predicted_to(t, true);
+  const sod::SodFilter& f = *fp;
   const astro::QnsElements oe = f.observer();
   r.valid = true;
   r.health = reinit_pending_ ? 1 : (f.health().filter.healthy() ? 0 : 1);
@@ -481,8 +493,9 @@ std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, co
   // SAMUS releases a track's measurements at most dbscan_frames + n_scan frames late.
   while (!direct_.empty() && astro::seconds_between(direct_.front().first, t) > 4.0 * 3600.0) direct_.pop_front();
   if (!filter_ || reinit_pending_ || candidates.empty()) return used;
-  sod::SodFilter f = *filter_;
-  if (f.epoch() < t && !f.time_update(t).usable) return used;
+  const sod::SodFilter* fp = predicted_to(t);
+  if (!fp) return used;
+  const sod::SodFilter& f = *fp;
   // Every target's prediction and every free candidate's squared Mahalanobis distance to it.
   const std::size_t K = target_ids_.size(), C = candidates.size();
   std::vector<bool> have(K, false);
@@ -531,8 +544,9 @@ bool Navigator::tracked(int k, astro::TimeTT t) const {
 std::vector<Navigator::PixelRegion> Navigator::untracked_regions(astro::TimeTT t, const PixelOf& pixel_of) const {
   std::vector<PixelRegion> out;
   if (!filter_ || reinit_pending_) return out;
-  sod::SodFilter f = *filter_;
-  if (f.epoch() < t && !f.time_update(t).usable) return out;
+  const sod::SodFilter* fp = predicted_to(t);
+  if (!fp) return out;
+  const sod::SodFilter& f = *fp;
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
     if (tracked(k, t)) continue;
     // Unscented transform of [observer QNS; target ROE] through the pixel of the line of sight.
@@ -572,16 +586,13 @@ std::vector<Navigator::PixelRegion> Navigator::untracked_regions(astro::TimeTT t
 std::vector<imp::TargetPrediction> Navigator::predictions(astro::TimeTT t, const imp::Samus& samus) const {
   std::vector<imp::TargetPrediction> out;
   if (!filter_ || reinit_pending_) return out;
-  std::optional<sod::SodFilter> f;
+  const sod::SodFilter* f = nullptr;
   for (const auto& [tid, as] : tracks_) {
     if (as.target < 0 || astro::seconds_between(as.last, t) > 1800.0) continue;
     const astro::Vec6 a_roe = filter_->a_roe_m(as.target);
     const astro::Vec6 sig = filter_->a_roe_sigma_m(as.target);
     if (!(sig[1] < opt_.aided_max_dlambda_fraction * a_roe.head<2>().norm())) continue;
-    if (!f) {
-      f.emplace(*filter_);
-      if (f->epoch() < t && !f->time_update(t).usable) return out;
-    }
+    if (!f && !(f = predicted_to(t))) return out;
     imp::TargetPrediction p;
     if (predict_plane(*f, as.target, samus, p)) {
       p.track_id = tid;

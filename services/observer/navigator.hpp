@@ -225,7 +225,12 @@ class Navigator {
   bool fuse_remote_ = false;             // navigation mode 3
   std::vector<std::string> senders_;
   std::map<std::string, LinkWatch> links_;
-  std::deque<std::pair<astro::TimeTT, Eigen::Vector3d>> direct_;  // kind-2 assignments of the last hours
+  std::deque<std::pair<astro::TimeTT, Eigen::Vector3d>> direct_;
+  std::uint64_t version_ = 0;  // bumped whenever queued events change filter_
+  mutable std::optional<sod::SodFilter> predicted_;
+  mutable astro::TimeTT predicted_t_;
+  mutable std::uint64_t predicted_version_ = 0;
+  mutable bool predicted_usable_ = false;  // kind-2 assignments of the last hours
   const dynamics::GveRk4Propagator onboard_;
   std::size_t remote_assigned_ = 0, remote_unassigned_ = 0, remote_late_ = 0;
   std::vector<std::uint32_t> remote_;
@@ -234,6 +239,12 @@ class Navigator {
   static Event bearing_event(astro::TimeTT t, int kind, int track, const Eigen::Vector3d& u_eci,
                              const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad);
   void process(const Event& e, const imp::Samus& samus);
+  // The filter predicted to t (time update from its epoch), shared by the
+  // report, SAMUS predictions and single-detection assignment of one step or
+  // frame; recomputed when t or the filter changes. nullptr when the time
+  // update is not usable (unless even_if_unusable: then the state as far as
+  // it got, as the report has always used).
+  [[nodiscard]] const sod::SodFilter* predicted_to(astro::TimeTT t, bool even_if_unusable = false) const;
   // Every queued event with t <= limit, in time order.
   void process_until(astro::TimeTT limit, const imp::Samus& samus);
   // Remote bearings of one sender at one epoch: the paper's three
