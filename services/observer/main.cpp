@@ -171,6 +171,14 @@ int run(const runtime::ServiceOptions& opt) {
   std::optional<astro::TimeTT> last_broadcast;
   std::uint32_t isl_sent = 0, isl_received = 0, isl_rejected = 0;
   std::map<std::string, std::uint32_t> isl_received_from;
+  std::map<std::string, astro::TimeTT> isl_last_heard;  // sender -> time of its latest broadcast received
+  std::deque<artms_msg_BearingMeasurement> isl_recent;  // broadcast within the repeat window
+  bool isl_repeat_pending = false;
+  // As old as a bearing can be when broadcast and still reach a receiver's
+  // filter in time (its remote hold minus the transport: one period, the
+  // latency, two steps).
+  const double isl_repeat_window_s =
+      observer::remote_bearing_max_age_s(up) - (up.isl_period_s + up.isl_latency_s + 2.0 * up.step_s);
   struct IslIn {
     std::int64_t t_relayed_ns = 0;
     std::string sender;
@@ -289,6 +297,20 @@ int run(const runtime::ServiceOptions& opt) {
       }
       ++isl_received;
       ++isl_received_from[in.rb.sender];
+      // A sender heard again after a silence of more than three periods: the
+      // links were down, so the broadcasts this observer made meanwhile were
+      // most likely lost too; its next broadcast repeats the bearings of the
+      // last isl_repeat_window_s (receivers drop what they already have).
+      const auto heard = isl_last_heard.find(in.rb.sender);
+      if (heard != isl_last_heard.end() && astro::seconds_between(heard->second, in.rb.t) > 3.0 * up.isl_period_s &&
+          !isl_repeat_pending) {
+        isl_repeat_pending = true;
+        events.info(t.ns_since_j2000, "ISL: " + in.rb.sender + " heard again after " +
+                                          std::to_string(std::llround(astro::seconds_between(heard->second, in.rb.t))) +
+                                          " s; the next broadcast repeats the bearings of the last " +
+                                          std::to_string(std::llround(isl_repeat_window_s)) + " s");
+      }
+      isl_last_heard[in.rb.sender] = in.rb.t;
       if (navigator) navigator->add_remote(in.rb);
     }
     isl_in.erase(isl_in.begin(), isl_in.begin() + static_cast<std::ptrdiff_t>(n_isl));
@@ -483,7 +505,8 @@ int run(const runtime::ServiceOptions& opt) {
                         std::to_string(navigator->remote_broadcasts()) + " broadcasts received, remote bearings " +
                         std::to_string(navigator->remote_assigned()) + " fused, " +
                         std::to_string(navigator->remote_unassigned()) + " not assigned, " +
-                        std::to_string(navigator->remote_late()) + " too late");
+                        std::to_string(navigator->remote_late()) + " too late, " +
+                        std::to_string(navigator->remote_repeated()) + " repeats dropped");
       } else {
         const std::int64_t safe = frame_times_ns.size() > static_cast<std::size_t>(n_scan)
                                       ? frame_times_ns[frame_times_ns.size() - 1 - static_cast<std::size_t>(n_scan)]
@@ -560,11 +583,22 @@ int run(const runtime::ServiceOptions& opt) {
         for (int i = 0; i < 36; ++i) b.covariance_rv[i] = nav.covariance_rv[i];
         b.source = nav.source;  // 1 SOD, 2 GNSS fallback, 0 none
         b.reinitialising = nav.health == 1;
-        b.measurements._buffer = isl_bearings.data();
-        b.measurements._length = b.measurements._maximum = static_cast<std::uint32_t>(isl_bearings.size());
+        // Bearings broadcast within the repeat window are kept; after a
+        // silence of the links they go out again with the new ones.
+        while (!isl_recent.empty() &&
+               astro::seconds_between(astro::TimeTT{isl_recent.front().t_tt_ns}, t) > isl_repeat_window_s) {
+          isl_recent.pop_front();
+        }
+        std::vector<artms_msg_BearingMeasurement> payload;
+        if (isl_repeat_pending) payload.assign(isl_recent.begin(), isl_recent.end());
+        payload.insert(payload.end(), isl_bearings.begin(), isl_bearings.end());
+        isl_repeat_pending = false;
+        b.measurements._buffer = payload.data();
+        b.measurements._length = b.measurements._maximum = static_cast<std::uint32_t>(payload.size());
         b.measurements._release = false;
         isl_writer.write(b);
         ++isl_sent;
+        isl_recent.insert(isl_recent.end(), isl_bearings.begin(), isl_bearings.end());
         isl_bearings.clear();
       }
       nav.isl_sent = isl_sent;

@@ -55,13 +55,15 @@ Mat6 jacobian_rv_from_qns(const astro::QnsElements& oe) {
 
 }  // namespace
 
+double remote_bearing_max_age_s(const config::ObserverUplink& up) {
+  return (imp::SamusOptions{}.n_scan + up.tuning.imp.dbscan_frames) * up.swarm_max_cadence_s + up.isl_period_s +
+         up.isl_latency_s + 2.0 * up.step_s;
+}
+
 Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceModel& forces, NavigatorOptions options)
     : up_(up), forces_(forces), opt_(options), onboard_(forces, dynamics::SpacecraftProperties{}) {
   fuse_remote_ = up.observer.mode == 3;
-  if (opt_.remote_hold_s < 0.0) {
-    opt_.remote_hold_s = (imp::SamusOptions{}.n_scan + up.tuning.imp.dbscan_frames) * up.swarm_max_cadence_s +
-                         up.isl_period_s + up.isl_latency_s + 2.0 * up.step_s;
-  }
+  if (opt_.remote_hold_s < 0.0) opt_.remote_hold_s = remote_bearing_max_age_s(up);
   if (fuse_remote_) opt_.max_lag_s = std::max(opt_.max_lag_s, opt_.remote_hold_s);
   for (const auto& a : up.apriori) target_ids_.push_back(a.target);
   local_.assign(target_ids_.size(), 0);
@@ -97,8 +99,17 @@ void Navigator::add_remote(const RemoteBroadcast& b) {
   const bool orbit_ok = b.source != 0 && !b.reinitialising && b.x_eci.r_m.allFinite() && b.x_eci.v_mps.allFinite() &&
                         b.P_rv.allFinite();
   std::map<std::int64_t, astro::StateVector> at;  // sender position per bearing epoch
+  // Forget what is older than any bearing still worth queueing.
+  const std::int64_t horizon = b.t.ns_since_j2000 - static_cast<std::int64_t>(4.0 * opt_.remote_hold_s * 1e9);
+  for (auto seen = remote_seen_.begin(); seen != remote_seen_.end();) {
+    seen = std::get<1>(*seen) < horizon ? remote_seen_.erase(seen) : std::next(seen);
+  }
   for (const auto& rb : b.bearings) {
     if (!rb.u_eci.allFinite() || !(rb.sigma_rad > 0.0)) continue;
+    if (!remote_seen_.emplace(b.sender, rb.t.ns_since_j2000, rb.track).second) {
+      ++remote_repeated_;  // already queued from an earlier broadcast
+      continue;
+    }
     Event e;
     e.t = rb.t;
     e.kind = 3;

@@ -42,6 +42,8 @@
 #include <deque>
 #include <functional>
 #include <map>
+#include <set>
+#include <tuple>
 #include <optional>
 #include <string>
 #include <vector>
@@ -73,6 +75,11 @@ struct NavigatorOptions {
   double direct_gate_chi2 = 9.21;            // 2 dof, 99 %: single detections of untracked targets
   double direct_max_sigma_rad = 300.0 * 4.84813681109536e-6;  // widest validity region (RSS 1-sigma) used
 };
+
+// The oldest a remote bearing can be when it arrives (NavigatorOptions::
+// remote_hold_s < 0): the sender's SAMUS decision lag (dbscan_frames + n_scan
+// frames at the swarm's longest cadence) + one ISL period + latency + two steps.
+double remote_bearing_max_age_s(const config::ObserverUplink& up);
 
 // What arrives over the inter-satellite link from another observer (paper,
 // "Sequential Orbit Determination": remote bearings are fused, the remote
@@ -122,6 +129,7 @@ class Navigator {
   [[nodiscard]] std::size_t remote_assigned() const { return remote_assigned_; }
   [[nodiscard]] std::size_t remote_unassigned() const { return remote_unassigned_; }
   [[nodiscard]] std::size_t remote_late() const { return remote_late_; }
+  [[nodiscard]] std::size_t remote_repeated() const { return remote_repeated_; }  // duplicates dropped
   // A bearing released by SAMUS: time tag, track, unit line of sight (ECI)
   // and the attitude of its frame.
   void add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci,
@@ -225,6 +233,10 @@ class Navigator {
   bool fuse_remote_ = false;             // navigation mode 3
   std::vector<std::string> senders_;
   std::map<std::string, LinkWatch> links_;
+  // Remote bearings already queued, (sender, t, track label): a sender
+  // repeats its recent bearings after a silence of its links (main.cpp).
+  std::set<std::tuple<std::string, std::int64_t, std::string>> remote_seen_;
+  std::size_t remote_repeated_ = 0;
   std::deque<std::pair<astro::TimeTT, Eigen::Vector3d>> direct_;
   std::uint64_t version_ = 0;  // bumped whenever queued events change filter_
   mutable std::optional<sod::SodFilter> predicted_;

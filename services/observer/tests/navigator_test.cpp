@@ -47,12 +47,12 @@ config::ObserverUplink uplink(const Truth& truth, int mode, std::mt19937_64& rng
 
 struct Outcome {
   astro::Vec6 err0, err1, sig0, sig1;
-  std::size_t assigned, unassigned, late;
+  std::size_t assigned, unassigned, late, repeated;
 };
 
 // delay_s: the broadcast of minute k carries the bearings of minute k -
 // delay_s/60 (a sender's decision lag); remote_hold_s: NavigatorOptions.
-Outcome run(int mode, bool clutter, int delay_min = 0, double remote_hold_s = -1.0) {
+Outcome run(int mode, bool clutter, int delay_min = 0, double remote_hold_s = -1.0, bool twice = false) {
   auto a_roe = starling_a_roe_m();
   a_roe.resize(2);  // SV2 (target 0, the remote observer) and SV3 (target 1)
   Truth truth(kT0, observer_at_start(), a_roe);
@@ -92,6 +92,7 @@ Outcome run(int mode, bool clutter, int delay_min = 0, double remote_hold_s = -1
       delayed.pop_front();
     }
     nav.add_remote(b);
+    if (twice) nav.add_remote(b);  // a sender repeating its bearings after a silence
     nav.advance(t, t, samus);
   }
   nav.finish(samus);  // mode 3 holds the filter remote_hold_s behind the clock
@@ -105,6 +106,7 @@ Outcome run(int mode, bool clutter, int delay_min = 0, double remote_hold_s = -1
   o.assigned = nav.remote_assigned();
   o.unassigned = nav.remote_unassigned();
   o.late = nav.remote_late();
+  o.repeated = nav.remote_repeated();
   return o;
 }
 
@@ -136,6 +138,18 @@ TEST(NavigatorMode3, RemoteHoldKeepsDelayedBearings) {
   const Outcome not_held = run(3, false, 3, 0.0);
   EXPECT_GT(not_held.late, 2u * 560u);
   EXPECT_EQ(not_held.assigned, 0u);
+}
+
+// A bearing received twice (the sender repeats its recent bearings after a
+// silence of its links) is queued once.
+TEST(NavigatorMode3, RepeatedRemoteBearingsAreFusedOnce) {
+  const Outcome once = run(3, false);
+  const Outcome twice = run(3, false, 0, -1.0, true);
+  EXPECT_EQ(once.repeated, 0u);
+  EXPECT_EQ(twice.repeated, 2u * 571u);  // two bearings per minute, 571 minutes
+  EXPECT_EQ(twice.assigned, once.assigned);
+  EXPECT_EQ(twice.unassigned, once.unassigned);
+  EXPECT_EQ(twice.err1, once.err1);
 }
 
 TEST(NavigatorMode3, Mode1IgnoresRemoteBearings) {
