@@ -53,6 +53,24 @@ Mat6 jacobian_rv_from_qns(const astro::QnsElements& oe) {
   return J;
 }
 
+// The observer's elements and target k's ROE, [alpha_o; droe_k] (12), with
+// their joint covariance, from the filter state.
+void observer_target_block(const sod::SodFilter& f, int k, Eigen::VectorXd& mean, Eigen::MatrixXd& P) {
+  const int off = f.layout().target_offset(k);
+  mean.resize(12);
+  mean << f.state().segment<6>(0), f.state().segment<6>(off);
+  const auto& C = f.covariance();
+  P.resize(12, 12);
+  P << C.block(0, 0, 6, 6), C.block(0, off, 6, 6), C.block(off, 0, 6, 6), C.block(off, off, 6, 6);
+}
+
+// Line of sight (ECI, observer to target, not normalised) of [alpha_o; droe].
+Eigen::Vector3d los_eci_of(const Eigen::VectorXd& s) {
+  const auto o = astro::QnsElements::from_vector(s.head<6>());
+  const auto t = astro::qns_from_roe(o, astro::Roe::from_vector(s.tail<6>()));
+  return astro::cartesian_from_qns(t).r_m - astro::cartesian_from_qns(o).r_m;
+}
+
 }  // namespace
 
 double remote_bearing_max_age_s(const config::ObserverUplink& up) {
@@ -227,22 +245,10 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
 }
 
 bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const {
-  const int off = f.layout().target_offset(k);
-  Eigen::VectorXd mean(12);
-  mean << f.state().segment<6>(0), f.state().segment<6>(off);
-  Eigen::MatrixXd P(12, 12);
-  const auto& C = f.covariance();
-  P.topLeftCorner(6, 6) = C.block(0, 0, 6, 6);
-  P.topRightCorner(6, 6) = C.block(0, off, 6, 6);
-  P.bottomLeftCorner(6, 6) = C.block(off, 0, 6, 6);
-  P.bottomRightCorner(6, 6) = C.block(off, off, 6, 6);
-  const astro::StateVector obs = astro::cartesian_from_qns(f.observer());
-  auto los = [](const Eigen::VectorXd& s) -> Eigen::Vector3d {
-    const auto o = astro::QnsElements::from_vector(s.head<6>());
-    const auto t = astro::qns_from_roe(o, astro::Roe::from_vector(s.tail<6>()));
-    return astro::cartesian_from_qns(t).r_m - astro::cartesian_from_qns(o).r_m;
-  };
-  return samus.unscented_prediction(-1, mean, P, los, obs, out);
+  Eigen::VectorXd mean;
+  Eigen::MatrixXd P;
+  observer_target_block(f, k, mean, P);
+  return samus.unscented_prediction(-1, mean, P, los_eci_of, astro::cartesian_from_qns(f.observer()), out);
 }
 
 void Navigator::process(const Event& e, const imp::Samus& samus) {
@@ -561,22 +567,16 @@ std::vector<Navigator::PixelRegion> Navigator::untracked_regions(astro::TimeTT t
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
     if (tracked(k, t)) continue;
     // Unscented transform of [observer QNS; target ROE] through the pixel of the line of sight.
-    const int off = f.layout().target_offset(k);
-    Eigen::VectorXd mean(12);
-    mean << f.state().segment<6>(0), f.state().segment<6>(off);
-    Eigen::MatrixXd P(12, 12);
-    const auto& C = f.covariance();
-    P << C.block(0, 0, 6, 6), C.block(0, off, 6, 6), C.block(off, 0, 6, 6), C.block(off, off, 6, 6);
+    Eigen::VectorXd mean;
+    Eigen::MatrixXd P;
+    observer_target_block(f, k, mean, P);
     const Eigen::LLT<Eigen::MatrixXd> llt(P * 12.0);
     if (llt.info() != Eigen::Success) continue;
     const Eigen::MatrixXd L = llt.matrixL();
     std::vector<Eigen::Vector2d> pts;
     for (Eigen::Index i = 0; i < 12 && pts.size() == static_cast<std::size_t>(2 * i); ++i) {
       for (const double sgn : {1.0, -1.0}) {
-        const Eigen::VectorXd x = mean + sgn * L.col(i);
-        const auto o = astro::QnsElements::from_vector(x.head<6>());
-        const auto tq = astro::qns_from_roe(o, astro::Roe::from_vector(x.tail<6>()));
-        const auto px = pixel_of((astro::cartesian_from_qns(tq).r_m - astro::cartesian_from_qns(o).r_m).normalized());
+        const auto px = pixel_of(los_eci_of(mean + sgn * L.col(i)).normalized());
         if (px) pts.push_back(*px);
       }
     }
