@@ -162,8 +162,11 @@ int run(const runtime::ServiceOptions& opt) {
     Eigen::Quaterniond q_cam_from_eci;
   };
   std::vector<PendingDirect> pending_direct;
+  // Matched-filter options for aided detection and for the faint-star check
+  // of single detections; the check keeps the default threshold when aided
+  // detection is off (aided_detection_snr 0).
   imp::AidedDetectionOptions aided_options;
-  aided_options.threshold_snr = std::max(up.tuning.imp.aided_detection_snr, 1e-9);
+  if (up.tuning.imp.aided_detection_snr > 0.0) aided_options.threshold_snr = up.tuning.imp.aided_detection_snr;
   aided_options.psf_sigma_px = up.camera_calibration.psf_sigma_px;
   aided_options.gain_e_per_dn = up.camera_calibration.gain_e_per_dn;
   // ISL: bearings decided since the last broadcast, counters.
