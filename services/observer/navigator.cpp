@@ -399,8 +399,12 @@ void Navigator::process_remote(const std::vector<Event>& group) {
       if (body >= 0) ++remote_[static_cast<std::size_t>(body)];
       LinkWatch& w = links_[sender];
       const Event& e = group[j];
-      if (e.since_gap > 0 && w.reported_gap < e.gap) {
+      // Reported again if a broadcast received earlier after the same silence
+      // is fused later: a repeat after a silence carries older bearings than the
+      // broadcast before it, and the filter fuses in time order.
+      if (e.since_gap > 0 && (w.reported_gap < e.gap || (w.reported_gap == e.gap && e.since_gap < w.reported_since))) {
         w.reported_gap = e.gap;
+        w.reported_since = e.since_gap;
         messages_.push_back("ISL: remote bearings from " + sender + " fused again, from its broadcast " +
                             std::to_string(e.seq) + " (received " + std::to_string(e.since_gap) +
                             (e.since_gap == 1 ? "st" : e.since_gap == 2 ? "nd" : e.since_gap == 3 ? "rd" : "th") +

@@ -208,6 +208,7 @@ class Navigator {
     int gap = 0;                        // silences seen so far
     int since_gap = 0;                  // broadcasts since the latest silence (0: none yet)
     int reported_gap = 0;               // the latest silence after which fusion resumed
+    int reported_since = 0;             // the earliest broadcast after it reported fused
   };
   struct Association {
     std::vector<double> d2_sum;
