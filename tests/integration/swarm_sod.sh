@@ -6,6 +6,9 @@
 # updated, its final a*dlambda error and 1-sigma within 2 % / 3 % of range
 # (from an a-priori ~17 % off), every ROE inside 3 sigma on >= 90 % of the
 # steps after convergence; eval/ files and artms-report plots written.
+# artms-sod-replay on the same run folder: SOD re-run offline on the recorded
+# GNSS fixes and bearings ends on the observer's own final 1-sigma (within
+# 5 %); with synthetic bearings it runs; an unknown observer is a clear error.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -27,5 +30,25 @@ assert t["local_measurements"] > 50, t
 assert t["final_dlambda_error_pct"] < 2.0 and t["final_dlambda_sigma_pct"] < 3.0, t
 assert min(t["frac_within_3sigma"].values()) >= 0.9, t["frac_within_3sigma"]
 assert o["absolute"]["final_pos_error_m"] is not None and o["absolute"]["final_pos_error_m"] < 50, o["absolute"]
+PY
+"$BIN/artms-sod-replay" "$WORK/run" --csv "$WORK/replay.csv" > "$WORK/replay.out" || { cat "$WORK/replay.out"; exit 1; }
+"$BIN/artms-sod-replay" "$WORK/run" --bearings synthetic --after-orbits 1 > "$WORK/replay_synthetic.out"
+cat "$WORK/replay.out" "$WORK/replay_synthetic.out"
+if "$BIN/artms-sod-replay" "$WORK/run" --observer SV9 2> "$WORK/replay_bad.err"; then echo "FAIL: unknown observer accepted"; exit 1; fi
+grep -q "uplink/SV9.json" "$WORK/replay_bad.err" || { echo "FAIL: unclear error"; cat "$WORK/replay_bad.err"; exit 1; }
+/usr/bin/python3 - "$WORK" <<'PY'
+import csv, json, re, sys
+w = sys.argv[1]
+s = json.load(open(f"{w}/run/summary.json"))
+live = s["observers"]["SV4"]["targets"]["SV2"]["final_sigma_a_roe_m"][1]
+m = re.search(r"SV2: (\d+) of (\d+) bearings fused.*final a\*dlambda 1-sigma (\d+) m", open(f"{w}/replay.out").read())
+assert m, "no SV2 line in the replay"
+fused, replayed = int(m.group(1)), float(m.group(3))
+print(f"  SV2 final a*dlambda 1-sigma: observer {live:.1f} m, replay {replayed:.0f} m ({fused} bearings)")
+assert fused > 50 and abs(replayed - live) <= max(0.05 * live, 1.0), (fused, replayed, live)
+rows = list(csv.DictReader(open(f"{w}/replay.csv")))
+assert rows and all(float(r["nees"]) >= 0 for r in rows), "replay.csv"
+m = re.search(r"SV2: (\d+) of \d+ bearings fused; average NEES after orbit 1.0: ([0-9.]+) ", open(f"{w}/replay_synthetic.out").read())
+assert m and int(m.group(1)) > 50 and 0.0 < float(m.group(2)) < 30.0, "synthetic replay"
 print("swarm sod: ok")
 PY

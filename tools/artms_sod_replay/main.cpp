@@ -1,0 +1,325 @@
+// artms-sod-replay: runs SOD again, offline, on what a run folder recorded
+// for one observer (its GNSS fixes and IMP's bearings), started exactly as
+// the observer starts it (first fix, uplinked a-priori) with the scenario's
+// SOD tuning, and reports each target's consistency against the truth.
+// It answers "is it the filter or the measurements?": with --bearings
+// synthetic every bearing keeps its time and recorded 1-sigma but its error
+// is drawn white from that 1-sigma around the true line of sight; with
+// --bearings pixel it keeps only the centroid's error (measured minus true
+// pixel), without the attitude's.
+//
+// An evaluation tool: it reads truth.oem and frames.csv (bearings are given
+// to the target whose true pixel is within 3 px, where the observer
+// associates them itself), never onboard. Mode 1 only (own bearings).
+#include <CLI/CLI.hpp>
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "artms/astro/elements.hpp"
+#include "artms/astro/roe.hpp"
+#include "artms/astro/time.hpp"
+#include "artms/config/uplink.hpp"
+#include "artms/dynamics/forces.hpp"
+#include "artms/sod/sod_filter.hpp"
+
+namespace {
+
+using namespace artms;
+using Eigen::MatrixXd;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+// A CSV file as a header-indexed table.
+struct Table {
+  std::map<std::string, std::size_t> column;
+  std::vector<std::vector<std::string>> rows;
+  [[nodiscard]] const std::string& at(const std::vector<std::string>& row, const std::string& name) const {
+    return row.at(column.at(name));
+  }
+};
+
+Table read_table(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open " + path);
+  Table t;
+  std::string line;
+  bool header = true;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    std::string c;
+    while (std::getline(ss, c, ',')) f.push_back(c);
+    if (header) {
+      for (std::size_t i = 0; i < f.size(); ++i) t.column[f[i]] = i;
+      header = false;
+    } else if (f.size() == t.column.size()) {
+      t.rows.push_back(std::move(f));
+    }
+  }
+  return t;
+}
+
+// truth.oem: ECI states per object at each sample (TT ns).
+std::map<std::int64_t, std::map<std::string, astro::StateVector>> read_oem(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open " + path);
+  std::map<std::int64_t, std::map<std::string, astro::StateVector>> out;
+  std::string line, object;
+  while (std::getline(in, line)) {
+    if (line.rfind("OBJECT_NAME", 0) == 0) {
+      object = line.substr(line.find('=') + 1);
+      object.erase(0, object.find_first_not_of(' '));
+    } else if (line.size() > 20 && line[0] == '2' && line[4] == '-') {
+      std::stringstream ss(line);
+      std::string t;
+      double v[6];
+      ss >> t >> v[0] >> v[1] >> v[2] >> v[3] >> v[4] >> v[5];
+      astro::StateVector x;
+      x.r_m << v[0] * 1e3, v[1] * 1e3, v[2] * 1e3;
+      x.v_mps << v[3] * 1e3, v[4] * 1e3, v[5] * 1e3;
+      out[astro::tt_from_utc_string(t + "Z").ns_since_j2000][object] = x;
+    }
+  }
+  return out;
+}
+
+// Numerical Jacobian of the QNS elements by (r, v) (angles unwrapped).
+Mat6 jacobian_qns_from_rv(const astro::StateVector& x) {
+  Mat6 J;
+  const Vec6 x0 = x.stacked();
+  for (int j = 0; j < 6; ++j) {
+    const double h = j < 3 ? 1.0 : 1e-3;
+    Vec6 xp = x0, xm = x0;
+    xp[j] += h;
+    xm[j] -= h;
+    const auto p = astro::qns_from_cartesian({xp.head<3>(), xp.tail<3>()});
+    const auto m = astro::qns_from_cartesian({xm.head<3>(), xm.tail<3>()});
+    Vec6 d = (p.as_vector() - m.as_vector()) / (2.0 * h);
+    d[4] = std::remainder(p.raan_rad - m.raan_rad, 2.0 * M_PI) / (2.0 * h);
+    d[5] = std::remainder(p.u_rad - m.u_rad, 2.0 * M_PI) / (2.0 * h);
+    J.col(j) = d;
+  }
+  return J;
+}
+
+struct Bearing {
+  int target;
+  Eigen::Vector3d u_eci;
+  double sigma_rad;
+};
+
+int run(int argc, char** argv) {
+  CLI::App app{"Run SOD again, offline, on a run folder's recorded GNSS fixes and IMP bearings of one observer,\n"
+               "and report each target's consistency against the truth (an evaluation tool: reads truth).",
+               "artms-sod-replay"};
+  std::string run_dir, observer = "SV4", bearings_mode = "measured", csv_out;
+  std::uint64_t seed = 1;
+  double sigma_scale = 1.0, after_orbits = 4.0;
+  app.add_option("run", run_dir, "run folder (artms-swarm run --out)")->required();
+  app.add_option("--observer", observer, "observer id (mode 1)")->capture_default_str();
+  app.add_option("--bearings", bearings_mode,
+                 "measured: as recorded; synthetic: true line of sight + white noise of the recorded 1-sigma;\n"
+                 "pixel: true line of sight + the centroid's recorded error only")
+      ->check(CLI::IsMember({"measured", "synthetic", "pixel"}))
+      ->capture_default_str();
+  app.add_option("--seed", seed, "noise seed of --bearings synthetic")->capture_default_str();
+  app.add_option("--sigma-scale", sigma_scale, "multiplies every bearing 1-sigma given to the filter")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--after-orbits", after_orbits, "NEES averaged from this many orbits on")->capture_default_str();
+  app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES");
+  CLI11_PARSE(app, argc, argv);
+
+  const std::string up_path = run_dir + "/uplink/" + observer + ".json";
+  const config::ObserverUplink up = config::read_uplink(up_path);
+  if (up.apriori.empty()) throw std::runtime_error(up_path + ": no ground a-priori (not a mode 1 or 3 observer)");
+  const auto forces = dynamics::ForceModel::load(up.force_model, ARTMS_DATA_DIR);
+  std::vector<std::string> ids;
+  for (const auto& a : up.apriori) ids.push_back(a.target);
+  const int n = static_cast<int>(ids.size());
+  const auto truth = read_oem(run_dir + "/truth.oem");
+
+  // True pixels per frame time.
+  std::map<std::int64_t, std::map<std::string, Eigen::Vector2d>> true_px;
+  {
+    const Table frames = read_table(run_dir + "/frames.csv");
+    for (const auto& r : frames.rows) {
+      if (frames.at(r, "observer") != observer || frames.at(r, "x_px").empty()) continue;
+      true_px[std::stoll(frames.at(r, "t_tt_ns"))][frames.at(r, "target")] =
+          Eigen::Vector2d(std::stod(frames.at(r, "x_px")), std::stod(frames.at(r, "y_px")));
+    }
+  }
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  std::map<std::int64_t, std::vector<Bearing>> bearings;
+  int unassigned = 0;
+  {
+    const Table m = read_table(run_dir + "/imp/" + observer + "/measurements.csv");
+    for (const auto& r : m.rows) {
+      const std::int64_t t = std::stoll(m.at(r, "t_tt_ns"));
+      const Eigen::Vector2d p(std::stod(m.at(r, "x_px")), std::stod(m.at(r, "y_px")));
+      int best = -1;
+      double best_d = 3.0;
+      for (int k = 0; k < n; ++k) {
+        const auto it = true_px[t].find(ids[static_cast<std::size_t>(k)]);
+        if (it != true_px[t].end() && (it->second - p).norm() < best_d) {
+          best_d = (it->second - p).norm();
+          best = k;
+        }
+      }
+      if (best < 0) {
+        ++unassigned;  // a star, a hot pixel, or a target more than 3 px off
+        continue;
+      }
+      Eigen::Vector3d u(std::stod(m.at(r, "ux_eci")), std::stod(m.at(r, "uy_eci")), std::stod(m.at(r, "uz_eci")));
+      const double sigma = std::stod(m.at(r, "sigma_rad"));
+      if (bearings_mode != "measured") {
+        const auto& o = truth.at(t).at(observer);
+        const auto& g = truth.at(t).at(ids[static_cast<std::size_t>(best)]);
+        const Eigen::Vector3d u_true = (g.r_m - o.r_m).normalized();
+        // (e1, e2): perpendicular to the line of sight, e1 towards the zenith.
+        const Eigen::Vector3d e1 = (o.r_m.normalized() - u_true * u_true.dot(o.r_m.normalized())).normalized();
+        const Eigen::Vector3d e2 = u_true.cross(e1);
+        if (bearings_mode == "synthetic") {
+          u = (u_true + sigma * (normal(rng) * e1 + normal(rng) * e2)).normalized();
+        } else {  // pixel: the centroid's error, small-angle, pixel axes onto (e1, e2)
+          const Eigen::Vector2d dp = p - true_px[t][ids[static_cast<std::size_t>(best)]];
+          u = (u_true + dp.x() / up.camera_calibration.fx_px * e1 + dp.y() / up.camera_calibration.fy_px * e2)
+                  .normalized();
+        }
+      }
+      bearings[t].push_back({best, u, sigma * sigma_scale});
+    }
+  }
+
+  // The filter, as the navigator starts it (navigator.cpp, initialise).
+  sod::SodOptions opt;
+  opt.bearing_underweighting = up.tuning.sod.underweighting;
+  opt.adaptive.enabled = up.tuning.sod.adaptive_process_noise;
+  opt.q_target_a_roe_m2ps *= up.tuning.sod.process_noise_scale;
+  opt.health.max_steps_without_update = up.tuning.sod.max_steps_without_update;
+  opt.health.max_large_residuals = up.tuning.sod.max_large_residuals;
+  sod::SodFilter f(forces, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{}, sod::StateLayout{n, 0},
+                   opt);
+  const double sigma_r = up.observer.gnss.sigma_position_m, sigma_v = up.observer.gnss.sigma_velocity_mps;
+  std::FILE* csv = nullptr;
+  if (!csv_out.empty()) {
+    csv = std::fopen(csv_out.c_str(), "w");
+    if (!csv) throw std::runtime_error("cannot write " + csv_out);
+    std::fprintf(csv, "t_tt_ns,target,err_a_da_m,err_a_dlambda_m,err_a_dex_m,err_a_dey_m,err_a_dix_m,err_a_diy_m,"
+                      "sigma_a_da_m,sigma_a_dlambda_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_dix_m,sigma_a_diy_m,nees\n");
+  }
+  bool started = false;
+  std::int64_t t0 = 0;
+  double period_s = 0.0, a_m = 0.0;
+  std::vector<double> nees_sum(static_cast<std::size_t>(n), 0.0);
+  std::vector<int> nees_steps(static_cast<std::size_t>(n), 0), fused(static_cast<std::size_t>(n), 0),
+      offered(static_cast<std::size_t>(n), 0);
+  const Table gnss = read_table(run_dir + "/gnss.csv");
+  for (const auto& r : gnss.rows) {
+    if (gnss.at(r, "spacecraft") != observer || gnss.at(r, "valid") != "1") continue;
+    sod::GnssMeasurement g;
+    g.t = astro::TimeTT{std::stoll(gnss.at(r, "t_tt_ns"))};
+    g.x_eci.r_m << std::stod(gnss.at(r, "x_m")), std::stod(gnss.at(r, "y_m")), std::stod(gnss.at(r, "z_m"));
+    g.x_eci.v_mps << std::stod(gnss.at(r, "vx_mps")), std::stod(gnss.at(r, "vy_mps")), std::stod(gnss.at(r, "vz_mps"));
+    g.sigma_r_m = sigma_r;
+    g.sigma_v_mps = sigma_v;
+    if (!started) {
+      const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
+      Vec6 var_rv;
+      var_rv << Eigen::Vector3d::Constant(sigma_r * sigma_r), Eigen::Vector3d::Constant(sigma_v * sigma_v);
+      const Mat6 J = jacobian_qns_from_rv(g.x_eci);
+      MatrixXd P = MatrixXd::Zero(6 * (n + 1), 6 * (n + 1));
+      P.topLeftCorner<6, 6>() = J * var_rv.asDiagonal() * J.transpose() + Mat6::Identity() * 1e-20;
+      const double mean_motion = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(obs.a_m, 3));
+      const double dt = astro::seconds_between(up.epoch, g.t);
+      std::vector<astro::Roe> roes;
+      for (int k = 0; k < n; ++k) {
+        // The a-priori's along-track drift to the fix (D'Amico 2010).
+        const auto& ap = up.apriori[static_cast<std::size_t>(k)];
+        Vec6 roe = ap.roe;
+        roe[1] += -1.5 * mean_motion * roe[0] * dt;
+        Mat6 Phi = Mat6::Identity();
+        Phi(1, 0) = -1.5 * mean_motion * dt;
+        roes.push_back(astro::Roe::from_vector(roe));
+        P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Phi * ap.P_roe * Phi.transpose();
+      }
+      f.initialize(g.t, f.make_state(obs, roes), P);
+      started = true;
+      t0 = g.t.ns_since_j2000;
+      period_s = 2.0 * M_PI / mean_motion;
+      a_m = obs.a_m;
+    } else {
+      f.time_update(g.t);
+      f.update_gnss(g);
+    }
+    for (const auto& b : bearings[g.t.ns_since_j2000]) {
+      // Angles in a frame whose z axis is the bearing (well conditioned).
+      Eigen::Matrix3d R;
+      const Eigen::Vector3d ex = b.u_eci.unitOrthogonal();
+      R.row(0) = ex;
+      R.row(1) = b.u_eci.cross(ex);
+      R.row(2) = b.u_eci;
+      ++offered[static_cast<std::size_t>(b.target)];
+      if (f.update_bearing(sod::bearing_measurement_from_unit_eci(g.t, b.target, b.u_eci, b.sigma_rad, R)).usable)
+        ++fused[static_cast<std::size_t>(b.target)];
+    }
+    const auto it = truth.find(g.t.ns_since_j2000);
+    if (it == truth.end() || !it->second.count(observer)) continue;
+    const astro::QnsElements obs_true = astro::qns_from_cartesian(it->second.at(observer));
+    const double orbits = static_cast<double>(g.t.ns_since_j2000 - t0) * 1e-9 / period_s;
+    for (int k = 0; k < n; ++k) {
+      const auto& id = ids[static_cast<std::size_t>(k)];
+      if (!it->second.count(id)) continue;
+      const Vec6 roe_true = astro::roe_from_qns(obs_true, astro::qns_from_cartesian(it->second.at(id))).as_vector();
+      const int off = f.layout().target_offset(k);
+      Vec6 d = f.state().segment<6>(off) - roe_true;
+      d[1] = std::remainder(d[1], 2.0 * M_PI);
+      const Mat6 Pk = f.covariance().block<6, 6>(off, off);
+      const double nees = d.dot(Pk.ldlt().solve(d));
+      if (orbits >= after_orbits) {
+        nees_sum[static_cast<std::size_t>(k)] += nees;
+        ++nees_steps[static_cast<std::size_t>(k)];
+      }
+      if (csv) {
+        std::fprintf(csv, "%lld,%s", static_cast<long long>(g.t.ns_since_j2000), id.c_str());
+        for (int j = 0; j < 6; ++j) std::fprintf(csv, ",%.4f", d[j] * a_m);
+        for (int j = 0; j < 6; ++j) std::fprintf(csv, ",%.4f", std::sqrt(Pk(j, j)) * a_m);
+        std::fprintf(csv, ",%.4f\n", nees);
+      }
+    }
+  }
+  if (csv) std::fclose(csv);
+  if (!started) throw std::runtime_error(run_dir + "/gnss.csv: no valid fix of " + observer);
+  std::printf("%s, observer %s, bearings %s (seed %llu, sigma x %.2f); %d recorded bearings not within 3 px of a target\n",
+              run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(seed),
+              sigma_scale, unassigned);
+  for (int k = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    std::printf("  %s: %d of %d bearings fused; average NEES after orbit %.1f: %.2f (%d steps); final a*dlambda "
+                "1-sigma %.0f m\n",
+                ids[ku].c_str(), fused[ku], offered[ku], after_orbits,
+                nees_steps[ku] ? nees_sum[ku] / nees_steps[ku] : std::nan(""), nees_steps[ku], f.a_roe_sigma_m(k)[1]);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "artms-sod-replay: %s\n", e.what());
+    return 1;
+  }
+}
