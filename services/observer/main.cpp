@@ -168,6 +168,7 @@ int run(const runtime::ServiceOptions& opt) {
   imp::AidedDetectionOptions aided_options;
   if (up.tuning.imp.aided_detection_snr > 0.0) aided_options.threshold_snr = up.tuning.imp.aided_detection_snr;
   aided_options.psf_sigma_px = up.camera_calibration.psf_sigma_px;
+  std::map<int, imp::ForcedPhotometry> forced;  // per target index: forced photometry at its prediction
   aided_options.gain_e_per_dn = up.camera_calibration.gain_e_per_dn;
   // ISL: bearings decided since the last broadcast, counters.
   std::vector<artms_msg_BearingMeasurement> isl_bearings;
@@ -413,7 +414,15 @@ int run(const runtime::ServiceOptions& opt) {
             if (up.tuning.imp.aided_detection_snr > 0.0) {
               const Eigen::Matrix3d R_cam_from_eci = fr.q_cam_from_eci.toRotationMatrix();
               const auto pixel_of = [&](const Eigen::Vector3d& u) { return K.project(R_cam_from_eci * u); };
+              const std::span<const std::uint16_t> pixels(f.pixels._buffer, f.pixels._length);
+              const double tf_s = static_cast<double>(f.time_tag_tt_ns) * 1e-9;
               for (const auto& reg : navigator->untracked_regions(tf, pixel_of)) {
+                // Forced photometry at the prediction, every frame: the
+                // target's brightness unselected by the noise, for the
+                // 1-sigma of its aided detections.
+                imp::ForcedPhotometry& photometry = forced[reg.target];
+                const auto expected = photometry.expected_before(tf_s);
+                if (const auto nu = processor->forced_snr(pixels, reg.px, aided_options)) photometry.add(tf_s, *nu);
                 const Eigen::Matrix2d S_inv =
                     (reg.cov_px2 + std::pow(aided_options.psf_sigma_px, 2) * Eigen::Matrix2d::Identity()).inverse();
                 const bool have = std::any_of(fr.candidates.begin(), fr.candidates.end(), [&](const imp::Candidate& c) {
@@ -421,8 +430,7 @@ int run(const runtime::ServiceOptions& opt) {
                   return d.dot(S_inv * d) <= aided_options.gate_chi2;
                 });
                 if (have) continue;
-                const auto c = processor->aided_candidate(
-                    std::span<const std::uint16_t>(f.pixels._buffer, f.pixels._length), reg.px, reg.cov_px2, aided_options);
+                const auto c = processor->aided_candidate(pixels, reg.px, reg.cov_px2, aided_options, nullptr, expected);
                 if (c) {
                   candidates.push_back(*c);
                   ++aided_detections;

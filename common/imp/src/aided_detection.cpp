@@ -135,7 +135,6 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
   double flux = 0.0;
   for (int y = std::max(0, best_y - r); y <= std::min(height - 1, best_y + r); ++y)
     for (int x = std::max(0, best_x - r); x <= std::min(width - 1, best_x + r); ++x) flux += at(x, y) - b;
-  const double N = std::max(flux, 1.0) * opt.gain_e_per_dn;
   out.found = true;
   out.snr = best;
   out.centroid.x_px = cx;
@@ -143,9 +142,60 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
   out.centroid.flux_dn = flux;
   out.centroid.peak_dn = at(best_x, best_y) - b;
   out.centroid.pixels = 1;
-  out.centroid.sigma_px = std::sqrt(2.0 * s * s / (best * best) + s * s / N +
-                                    opt.centroid_sigma_floor_px * opt.centroid_sigma_floor_px);
+  out.centroid.sigma_px = aided_centroid_sigma_px(best, flux, opt);
   return out;
+}
+
+double aided_centroid_sigma_px(double nu, double flux_dn, const AidedDetectionOptions& opt) {
+  const double s = opt.psf_sigma_px;
+  const double N = std::max(flux_dn, 1.0) * opt.gain_e_per_dn;
+  return std::sqrt(2.0 * s * s / (nu * nu) + s * s / N + opt.centroid_sigma_floor_px * opt.centroid_sigma_floor_px);
+}
+
+std::optional<double> forced_snr(std::span<const std::uint16_t> pixels, int width, int height,
+                                 const Eigen::Vector2d& px, double noise_dn, double psf_sigma_px) {
+  if (width <= 0 || height <= 0 || pixels.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height))
+    throw std::invalid_argument("forced_snr: pixels.size() != width * height");
+  if (!px.allFinite() || !(noise_dn > 0.0) || !(psf_sigma_px > 0.0)) return std::nullopt;
+  const double s = psf_sigma_px;
+  const int r = static_cast<int>(std::ceil(3.0 * s));
+  const int half = r + 4;
+  const int xc = static_cast<int>(std::lround(px.x())), yc = static_cast<int>(std::lround(px.y()));
+  if (xc - half < 0 || yc - half < 0 || xc + half >= width || yc + half >= height) return std::nullopt;
+  auto at = [&](int x, int y) { return static_cast<double>(pixels[static_cast<std::size_t>(y) * width + x]); };
+  std::vector<double> values;
+  values.reserve(static_cast<std::size_t>((2 * half + 1) * (2 * half + 1)));
+  for (int y = yc - half; y <= yc + half; ++y)
+    for (int x = xc - half; x <= xc + half; ++x)
+      if (std::abs(x - xc) > r || std::abs(y - yc) > r) values.push_back(at(x, y));  // outside the kernel
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+  const double b = values[values.size() / 2];
+  double m = 0.0, g2 = 0.0;
+  for (int y = yc - r; y <= yc + r; ++y)
+    for (int x = xc - r; x <= xc + r; ++x) {
+      const double g = std::exp(-0.5 * ((x - px.x()) * (x - px.x()) + (y - px.y()) * (y - px.y())) / (s * s));
+      m += g * (at(x, y) - b);
+      g2 += g * g;
+    }
+  return m / std::sqrt(g2) / noise_dn;
+}
+
+void ForcedPhotometry::add(double t_s, double nu) {
+  seen_.emplace_back(t_s, nu);
+  while (seen_.size() > 64) seen_.pop_front();
+}
+
+std::optional<double> ForcedPhotometry::expected_before(double t_s, double window_s, int min_frames) const {
+  double sum = 0.0;
+  int n = 0;
+  for (const auto& [t, nu] : seen_) {
+    if (t < t_s && t_s - t < window_s) {
+      sum += nu;
+      ++n;
+    }
+  }
+  if (n < min_frames) return std::nullopt;
+  return sum / n;
 }
 
 }  // namespace artms::imp

@@ -188,10 +188,17 @@ std::optional<bool> FrameProcessor::source_at(std::span<const std::uint16_t> pix
   return a.found || a.peaks > 1;
 }
 
+std::optional<double> FrameProcessor::forced_snr(std::span<const std::uint16_t> pixels, const Eigen::Vector2d& px,
+                                                 const AidedDetectionOptions& options) const {
+  if (!(last_.noise_dn > 0.0)) return std::nullopt;
+  return imp::forced_snr(pixels, K_.width, K_.height, px, last_.noise_dn, options.psf_sigma_px);
+}
+
 std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::uint16_t> pixels,
                                                         const Eigen::Vector2d& predicted_px,
                                                         const Eigen::Matrix2d& cov_px2,
-                                                        const AidedDetectionOptions& options, std::string* why) {
+                                                        const AidedDetectionOptions& options, std::string* why,
+                                                        std::optional<double> expected_snr) {
   auto refuse = [&](const std::string& reason) -> std::optional<Candidate> {
     if (why) *why = reason;
     return std::nullopt;
@@ -208,7 +215,11 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   cand.flux_dn = a.centroid.flux_dn;
   cand.u_cam = K_.unproject({a.centroid.x_px, a.centroid.y_px});
   cand.u_eci = (last_.R_eci_from_cam * cand.u_cam).normalized();
-  cand.sigma_rad = std::hypot(a.centroid.sigma_px / K_.fx, last_.attitude_sigma_rad);
+  double sigma_px = a.centroid.sigma_px;
+  if (expected_snr && *expected_snr < a.snr) {
+    sigma_px = aided_centroid_sigma_px(std::max(*expected_snr, 1.0), a.centroid.flux_dn, options);
+  }
+  cand.sigma_rad = std::hypot(sigma_px / K_.fx, last_.attitude_sigma_rad);
   const auto& P = opt_.persistence;
   while (!aided_seen_.empty() && last_.t_s - aided_seen_.front().first > P.history_max_age_s) aided_seen_.pop_front();
   const double cos_star = std::cos(P.star_tolerance_rad);

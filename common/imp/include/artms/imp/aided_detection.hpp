@@ -20,6 +20,8 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <deque>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -59,5 +61,33 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
                                       double noise_dn,
                                       const std::vector<Eigen::Vector2d>& detections_px,
                                       const AidedDetectionOptions& options = {});
+
+// Centroid 1-sigma per axis (pixels) of a Gaussian spot of PSF sigma
+// options.psf_sigma_px seen at matched-filter SNR nu with flux_dn: the
+// background-limited Cramer-Rao term sqrt(2) s / nu, the photon term s^2 / N
+// and the floor.
+[[nodiscard]] double aided_centroid_sigma_px(double nu, double flux_dn, const AidedDetectionOptions& options);
+
+// Forced photometry: the matched-filter SNR nu at a given sub-pixel position
+// (the kernel centred there, background the median of the ring of pixels
+// between the kernel's half-width 3 s and 3 s + 4), measured whether or not anything is detected.
+// Unlike the SNR of a detection, it is not selected by the noise: near the
+// threshold a detection is one where the noise happened to add up, and its
+// own nu over-states the source (docs/imp_samus.md section 9). nullopt: too
+// close to the edge.
+[[nodiscard]] std::optional<double> forced_snr(std::span<const std::uint16_t> pixels, int width, int height,
+                                               const Eigen::Vector2d& px, double noise_dn, double psf_sigma_px);
+
+// A target's recent forced-photometry SNRs (one per frame at its predicted
+// pixel). expected_before(t) is their mean over (t - window_s, t), the
+// current frame excluded, when at least min_frames are there.
+class ForcedPhotometry {
+ public:
+  void add(double t_s, double nu);
+  [[nodiscard]] std::optional<double> expected_before(double t_s, double window_s = 600.0, int min_frames = 2) const;
+
+ private:
+  std::deque<std::pair<double, double>> seen_;  // (t_s, nu), oldest first
+};
 
 }  // namespace artms::imp

@@ -117,9 +117,18 @@ class FrameProcessor {
   // source seen again at the same direction a frame later is a star.
   [[nodiscard]] std::optional<bool> source_at(std::span<const std::uint16_t> pixels, const Eigen::Vector3d& u_eci,
                                               const AidedDetectionOptions& options, double tolerance_px = 1.0) const;
+  // expected_snr: the target's forced-photometry SNR of the recent frames
+  // (ForcedPhotometry); when below the detection's own SNR, the centroid
+  // 1-sigma is computed with it (a detection near the threshold is one the
+  // noise lifted; the Cramer-Rao bound at the source's real SNR matches the
+  // scatter, docs/imp_samus.md section 9).
   std::optional<Candidate> aided_candidate(std::span<const std::uint16_t> pixels, const Eigen::Vector2d& predicted_px,
                                            const Eigen::Matrix2d& cov_px2, const AidedDetectionOptions& options,
-                                           std::string* why = nullptr);
+                                           std::string* why = nullptr, std::optional<double> expected_snr = std::nullopt);
+  // Forced photometry at a pixel of the frame process() took last
+  // (pixels: that frame), with its noise; nullopt near the edge or without a frame.
+  [[nodiscard]] std::optional<double> forced_snr(std::span<const std::uint16_t> pixels, const Eigen::Vector2d& px,
+                                                 const AidedDetectionOptions& options) const;
 
  private:
   struct Seen {
