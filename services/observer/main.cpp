@@ -517,7 +517,10 @@ int run(const runtime::ServiceOptions& opt) {
                         std::to_string(navigator->remote_assigned()) + " fused, " +
                         std::to_string(navigator->remote_unassigned()) + " not assigned, " +
                         std::to_string(navigator->remote_late()) + " too late, " +
-                        std::to_string(navigator->remote_repeated()) + " repeats dropped");
+                        std::to_string(navigator->remote_repeated()) + " repeats dropped; " +
+                        std::to_string(navigator->blended_measurements()) +
+                        " local bearings left out, another target predicted within " +
+                        std::to_string(static_cast<int>(observer::NavigatorOptions{}.blend_separation_px)) + " px");
       } else {
         const std::int64_t safe = frame_times_ns.size() > static_cast<std::size_t>(n_scan)
                                       ? frame_times_ns[frame_times_ns.size() - 1 - static_cast<std::size_t>(n_scan)]

@@ -266,6 +266,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
     const auto s = f.update_gnss(e.gnss);
     if (!s.usable && !s.gated) messages_.push_back("SOD: GNSS update not usable: " + s.why);
   } else if (e.kind == 2) {
+    if (blended(f, e.track, e.t)) return;
     const auto m = sod::bearing_measurement_from_unit_eci(e.t, e.track, e.u_eci, bearing_sigma(e.imp_sigma_rad),
                                                           e.q_cam_from_eci.toRotationMatrix());
     if (f.update_bearing(m).usable) ++local_[static_cast<std::size_t>(e.track)];
@@ -313,6 +314,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       return;
     }
     if (e.direct) return;  // already fused as a single detection of this target (kind 2)
+    if (blended(f, as.target, e.t)) return;
     const double sigma = bearing_sigma(e.imp_sigma_rad);
     const Eigen::Matrix3d R_v_from_eci = e.q_cam_from_eci.toRotationMatrix();
     const auto m = sod::bearing_measurement_from_unit_eci(e.t, as.target, e.u_eci, sigma, R_v_from_eci);
@@ -413,6 +415,26 @@ void Navigator::process_remote(const std::vector<Event>& group) {
     }
   }
   check_health();
+}
+
+bool Navigator::blended(sod::SodFilter& f, int k, astro::TimeTT t) {
+  const double fx = up_.camera_calibration.fx_px;
+  if (!(opt_.blend_separation_px > 0.0) || !(fx > 0.0) || target_ids_.size() < 2) return false;
+  if (!f.time_update(t).usable) return false;
+  Eigen::VectorXd mean;
+  Eigen::MatrixXd P;
+  observer_target_block(f, k, mean, P);
+  const Eigen::Vector3d u = los_eci_of(mean).normalized();
+  for (int j = 0; j < static_cast<int>(target_ids_.size()); ++j) {
+    if (j == k) continue;
+    observer_target_block(f, j, mean, P);
+    const double angle = std::acos(std::clamp(u.dot(los_eci_of(mean).normalized()), -1.0, 1.0));
+    if (angle * fx < opt_.blend_separation_px) {
+      ++blended_;
+      return true;
+    }
+  }
+  return false;
 }
 
 void Navigator::check_health() {

@@ -74,6 +74,10 @@ struct NavigatorOptions {
   double aided_max_dlambda_fraction = 0.02;  // SOD-aided SAMUS once a*dlambda 1-sigma < 2 % of range
   double direct_gate_chi2 = 9.21;            // 2 dof, 99 %: single detections of untracked targets
   double direct_max_sigma_rad = 300.0 * 4.84813681109536e-6;  // widest validity region (RSS 1-sigma) used
+  // A local bearing of a target whose predicted pixel lies this close to
+  // another target's is left out: the two spots blend into one centroid
+  // (5 PSF sigmas of the NST; with the uplinked fx). 0 disables.
+  double blend_separation_px = 6.0;
 };
 
 // The oldest a remote bearing can be when it arrives (NavigatorOptions::
@@ -181,6 +185,9 @@ class Navigator {
   // Events for the event log, drained by the caller.
   std::vector<std::string> take_messages() { return std::exchange(messages_, {}); }
   [[nodiscard]] std::size_t late_measurements() const { return late_; }
+  // Local bearings left out because another target was predicted within
+  // NavigatorOptions::blend_separation_px.
+  [[nodiscard]] std::size_t blended_measurements() const { return blended_; }
   [[nodiscard]] bool initialised() const { return filter_.has_value(); }
 
  private:
@@ -230,6 +237,7 @@ class Navigator {
   std::map<int, Association> tracks_;
   std::vector<std::uint32_t> local_;
   std::size_t late_ = 0;
+  std::size_t blended_ = 0;
   std::size_t remote_broadcasts_ = 0;
   bool fuse_remote_ = false;             // navigation mode 3
   std::vector<std::string> senders_;
@@ -269,6 +277,9 @@ class Navigator {
   // Its covariance carried along the same drift: Phi P Phi^T, Phi(dlambda, da) = -1.5 n dt.
   [[nodiscard]] astro::Mat6 apriori_covariance_at(int k, astro::TimeTT t) const;
   void check_health();
+  // Is target k predicted (filter f, time-updated to t) within
+  // blend_separation_px of another target?
+  bool blended(sod::SodFilter& f, int k, astro::TimeTT t);
   // The filter's bearing 1-sigma: sod.bearing_sigma_arcsec, or IMP's own when 0.
   [[nodiscard]] double bearing_sigma(double imp_sigma_rad) const;
   // Unscented prediction of target k's tracking-plane coordinates from the

@@ -123,7 +123,7 @@ int run(int argc, char** argv) {
                "artms-sod-replay"};
   std::string run_dir, observer = "SV4", bearings_mode = "measured", csv_out;
   std::uint64_t seed = 1;
-  double sigma_scale = 1.0, after_orbits = 4.0;
+  double sigma_scale = 1.0, after_orbits = 4.0, min_separation_px = 0.0;
   app.add_option("run", run_dir, "run folder (artms-swarm run --out)")->required();
   app.add_option("--observer", observer, "observer id (mode 1)")->capture_default_str();
   app.add_option("--bearings", bearings_mode,
@@ -134,6 +134,9 @@ int run(int argc, char** argv) {
   app.add_option("--seed", seed, "noise seed of --bearings synthetic")->capture_default_str();
   app.add_option("--sigma-scale", sigma_scale, "multiplies every bearing 1-sigma given to the filter")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--min-separation-px", min_separation_px,
+                 "leave out the bearings of frames where another target's true pixel is this close (blended spots)")
       ->capture_default_str();
   app.add_option("--after-orbits", after_orbits, "NEES averaged from this many orbits on")->capture_default_str();
   app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES");
@@ -161,7 +164,7 @@ int run(int argc, char** argv) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal;
   std::map<std::int64_t, std::vector<Bearing>> bearings;
-  int unassigned = 0;
+  int unassigned = 0, blended = 0;
   {
     const Table m = read_table(run_dir + "/imp/" + observer + "/measurements.csv");
     for (const auto& r : m.rows) {
@@ -179,6 +182,16 @@ int run(int argc, char** argv) {
       if (best < 0) {
         ++unassigned;  // a star, a hot pixel, or a target more than 3 px off
         continue;
+      }
+      if (min_separation_px > 0.0) {
+        const Eigen::Vector2d q = true_px[t][ids[static_cast<std::size_t>(best)]];
+        bool near = false;
+        for (const auto& [id, other] : true_px[t])
+          if (id != ids[static_cast<std::size_t>(best)] && (other - q).norm() < min_separation_px) near = true;
+        if (near) {
+          ++blended;
+          continue;
+        }
       }
       Eigen::Vector3d u(std::stod(m.at(r, "ux_eci")), std::stod(m.at(r, "uy_eci")), std::stod(m.at(r, "uz_eci")));
       const double sigma = std::stod(m.at(r, "sigma_rad"));
@@ -300,9 +313,10 @@ int run(int argc, char** argv) {
   }
   if (csv) std::fclose(csv);
   if (!started) throw std::runtime_error(run_dir + "/gnss.csv: no valid fix of " + observer);
-  std::printf("%s, observer %s, bearings %s (seed %llu, sigma x %.2f); %d recorded bearings not within 3 px of a target\n",
+  std::printf("%s, observer %s, bearings %s (seed %llu, sigma x %.2f); %d recorded bearings not within 3 px of a "
+              "target, %d left out as blended\n",
               run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(seed),
-              sigma_scale, unassigned);
+              sigma_scale, unassigned, blended);
   for (int k = 0; k < n; ++k) {
     const auto ku = static_cast<std::size_t>(k);
     std::printf("  %s: %d of %d bearings fused; average NEES after orbit %.1f: %.2f (%d steps); final a*dlambda "

@@ -160,3 +160,61 @@ TEST(NavigatorMode3, Mode1IgnoresRemoteBearings) {
 
 }  // namespace
 }  // namespace artms::observer
+
+// Blended spots: single detections of target 0 while target 1 sits on
+// nearly the same line of sight (a close pair 5 and 10 km behind, a*ROE
+// twice target 0's: the same direction to within ~2 px) are left out and
+// counted; with the targets far apart in the image, or without a camera
+// calibration to convert pixels, none is. A-priori = truth, 1 m 1-sigma.
+namespace artms::observer {
+namespace {
+
+std::pair<std::size_t, std::uint32_t> blend_run(bool aligned, double fx_px) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  if (aligned) {
+    a_roe[0] << 0.0, -5000.0, 30.0, -20.0, 25.0, 40.0;
+    a_roe[1] = 2.0 * a_roe[0];
+  }
+  Truth truth(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng(5);
+  config::ObserverUplink up = uplink(truth, 1, rng);
+  for (int k = 0; k < 2; ++k) {
+    up.apriori[static_cast<std::size_t>(k)].roe = truth.roe(k).as_vector();
+    up.apriori[static_cast<std::size_t>(k)].P_roe =
+        astro::Mat6::Identity() * std::pow(1.0 / truth.observer().a_m, 2);
+  }
+  up.camera_calibration.fx_px = fx_px;
+  Navigator nav(up, j2_forces());
+  const imp::Samus samus;
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double s = 10 * astro::kArcsecToRad;
+  for (int k = 0; k <= 60; ++k) {
+    const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+    truth.advance_to(t);
+    nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
+    if (k > 0) {
+      const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
+      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+      nav.add_direct(t, 0, (u + s * g(rng) * a + s * g(rng) * b).normalized(), Eigen::Quaterniond::Identity(), s);
+    }
+    nav.advance(t, t, samus);
+  }
+  nav.finish(samus);
+  return {nav.blended_measurements(), nav.report(truth.t()).targets[0].local_measurements};
+}
+
+TEST(NavigatorBlend, BearingsOfTargetsPredictedOnTheSameSpotAreLeftOut) {
+  const auto [blended, fused] = blend_run(true, 5660.0);
+  EXPECT_EQ(blended, 60u);
+  EXPECT_EQ(fused, 0u);
+  const auto [blended_far, fused_far] = blend_run(false, 5660.0);
+  EXPECT_EQ(blended_far, 0u);
+  EXPECT_GT(fused_far, 50u);
+  const auto [blended_nofx, fused_nofx] = blend_run(true, 0.0);
+  EXPECT_EQ(blended_nofx, 0u);
+  EXPECT_GT(fused_nofx, 50u);
+}
+
+}  // namespace
+}  // namespace artms::observer
