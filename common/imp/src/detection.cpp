@@ -479,14 +479,18 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
   std::vector<std::size_t> stack, comp;
   std::vector<std::array<double, 3>> maxima;  // x, y, signal
   int n_components = 0;
+  // Hot pixels: a pixel of at least 10 noise sigmas far sharper than the PSF
+  // allows (max_sharpness times the mean of its 4 neighbours) is replaced by
+  // that mean; appends (index, replacement) to `out` if so.
+  auto collect_hot = [&](std::size_t k, std::vector<std::pair<std::size_t, double>>& out) {
+    const int x = static_cast<int>(k % W), y = static_cast<int>(k / W);
+    const double sk = f.signal(x, y);
+    if (sk < 10.0 * grid.at(grid.noise, x, y)) return;
+    const double nmean = f.neighbour_mean(x, y);
+    if (sk > o.max_sharpness * nmean) out.emplace_back(k, std::max(nmean, 0.0));
+  };
   if (o.max_sharpness > 0.0) {
-    for (const std::size_t k : seeds) {
-      const int x = static_cast<int>(k % W), y = static_cast<int>(k / W);
-      const double sk = f.signal(x, y);
-      if (sk < 10.0 * grid.at(grid.noise, x, y)) continue;
-      const double nmean = f.neighbour_mean(x, y);
-      if (sk > o.max_sharpness * nmean) f.frame_hot.emplace_back(k, std::max(nmean, 0.0));
-    }
+    for (const std::size_t k : seeds) collect_hot(k, f.frame_hot);
     std::sort(f.frame_hot.begin(), f.frame_hot.end());
   }
   for (const std::size_t start : seeds) {
@@ -532,13 +536,7 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
     // the rest of the component (a star under the hot pixel) survives.
     f.mask.clear();
     if (o.max_sharpness > 0.0) {
-      for (const std::size_t k : comp) {
-        const int x = static_cast<int>(k % W), y = static_cast<int>(k / W);
-        const double s = f.signal(x, y);
-        if (s < 10.0 * grid.at(grid.noise, x, y)) continue;
-        const double nmean = f.neighbour_mean(x, y);
-        if (s > o.max_sharpness * nmean) f.mask.emplace_back(k, std::max(nmean, 0.0));
-      }
+      for (const std::size_t k : comp) collect_hot(k, f.mask);
       res.masked_hot_pixels += static_cast<int>(f.mask.size());
       for (const auto& m : f.mask) res.hot_suspects.push_back(m.first);
       if (npx - static_cast<int>(f.mask.size()) < o.min_pixels) {
