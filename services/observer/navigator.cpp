@@ -7,6 +7,7 @@
 #include "artms/astro/constants.hpp"
 #include "artms/astro/elements.hpp"
 #include "artms/astro/roe.hpp"
+#include "artms/sod/apriori.hpp"
 
 namespace artms::observer {
 
@@ -16,26 +17,6 @@ using Mat6 = Eigen::Matrix<double, 6, 6>;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
 Vec6 rv(const astro::StateVector& x) { return (Vec6() << x.r_m, x.v_mps).finished(); }
-astro::StateVector sv(const Vec6& v) { return {v.head<3>(), v.tail<3>()}; }
-
-double wrap_pi(double a) { return std::remainder(a, 2.0 * M_PI); }
-
-// d qns / d (r, v) by central differences (u and RAAN differences wrapped).
-Mat6 jacobian_qns_from_rv(const astro::StateVector& x) {
-  Mat6 J;
-  const Vec6 x0 = rv(x);
-  for (int j = 0; j < 6; ++j) {
-    const double h = j < 3 ? 1.0 : 1e-3;
-    Vec6 a = x0, b = x0;
-    a[j] += h;
-    b[j] -= h;
-    Vec6 d = (astro::qns_from_cartesian(sv(a)).as_vector() - astro::qns_from_cartesian(sv(b)).as_vector());
-    d[4] = wrap_pi(d[4]);
-    d[5] = wrap_pi(d[5]);
-    J.col(j) = d / (2.0 * h);
-  }
-  return J;
-}
 
 // d (r, v) / d qns by central differences.
 Mat6 jacobian_rv_from_qns(const astro::QnsElements& oe) {
@@ -53,12 +34,19 @@ Mat6 jacobian_rv_from_qns(const astro::QnsElements& oe) {
   return J;
 }
 
-// The observer's elements and target k's ROE, [alpha_o; droe_k] (12), with
-// their joint covariance, from the filter state.
+// The observer's elements and target k's ROE, [alpha_o; droe_k] (12), from
+// the filter state.
+Eigen::VectorXd observer_target_mean(const sod::SodFilter& f, int k) {
+  const int off = f.layout().target_offset(k);
+  Eigen::VectorXd mean(12);
+  mean << f.state().segment<6>(0), f.state().segment<6>(off);
+  return mean;
+}
+
+// The same with their joint covariance.
 void observer_target_block(const sod::SodFilter& f, int k, Eigen::VectorXd& mean, Eigen::MatrixXd& P) {
   const int off = f.layout().target_offset(k);
-  mean.resize(12);
-  mean << f.state().segment<6>(0), f.state().segment<6>(off);
+  mean = observer_target_mean(f, k);
   const auto& C = f.covariance();
   P.resize(12, 12);
   P << C.block(0, 0, 6, 6), C.block(0, off, 6, 6), C.block(off, 0, 6, 6), C.block(off, off, 6, 6);
@@ -200,21 +188,14 @@ bool Navigator::direct_assigned(astro::TimeTT t, const Eigen::Vector3d& u_eci) c
 }
 
 astro::Roe Navigator::apriori_at(int k, astro::TimeTT t) const {
-  // The uplinked ROE hold at the uplink epoch; dlambda drifts by
-  // -1.5 n da dt (Keplerian relative drift, D'Amico 2010).
-  const auto& a = up_.apriori[static_cast<std::size_t>(k)];
-  const double a_m = a_observer_m_;
-  const double n = std::sqrt(astro::kGmEarth_m3ps2 / (a_m * a_m * a_m));
-  Vec6 roe = a.roe;
-  roe[1] += -1.5 * n * roe[0] * astro::seconds_between(up_.epoch, t);
-  return astro::Roe::from_vector(roe);
+  // The uplinked ROE hold at the uplink epoch; dlambda drifts (sod/apriori.hpp).
+  return astro::Roe::from_vector(sod::apriori_roe_drifted(up_.apriori[static_cast<std::size_t>(k)].roe,
+                                                          a_observer_m_, astro::seconds_between(up_.epoch, t)));
 }
 
 astro::Mat6 Navigator::apriori_covariance_at(int k, astro::TimeTT t) const {
-  const double n = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(a_observer_m_, 3));
-  Mat6 Phi = Mat6::Identity();
-  Phi(1, 0) = -1.5 * n * astro::seconds_between(up_.epoch, t);
-  return Phi * up_.apriori[static_cast<std::size_t>(k)].P_roe * Phi.transpose();
+  return sod::apriori_covariance_drifted(up_.apriori[static_cast<std::size_t>(k)].P_roe, a_observer_m_,
+                                         astro::seconds_between(up_.epoch, t));
 }
 
 void Navigator::initialise(const sod::GnssMeasurement& g) {
@@ -222,7 +203,7 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
   a_observer_m_ = obs.a_m;
   Vec6 var_rv;
   var_rv << Eigen::Vector3d::Constant(g.sigma_r_m * g.sigma_r_m), Eigen::Vector3d::Constant(g.sigma_v_mps * g.sigma_v_mps);
-  const Mat6 J = jacobian_qns_from_rv(g.x_eci);
+  const Mat6 J = astro::jacobian_qns_from_cartesian(g.x_eci);
   Mat6 P_obs = J * var_rv.asDiagonal() * J.transpose();
   P_obs += Mat6::Identity() * 1e-20;
   if (!filter_) {
@@ -421,14 +402,11 @@ bool Navigator::blended(sod::SodFilter& f, int k, astro::TimeTT t) {
   const double fx = up_.camera_calibration.fx_px;
   if (!(opt_.blend_separation_px > 0.0) || !(fx > 0.0) || target_ids_.size() < 2) return false;
   if (!f.time_update(t).usable) return false;
-  Eigen::VectorXd mean;
-  Eigen::MatrixXd P;
-  observer_target_block(f, k, mean, P);
-  const Eigen::Vector3d u = los_eci_of(mean).normalized();
+  const Eigen::Vector3d u = los_eci_of(observer_target_mean(f, k)).normalized();
   for (int j = 0; j < static_cast<int>(target_ids_.size()); ++j) {
     if (j == k) continue;
-    observer_target_block(f, j, mean, P);
-    const double angle = std::acos(std::clamp(u.dot(los_eci_of(mean).normalized()), -1.0, 1.0));
+    const Eigen::Vector3d v = los_eci_of(observer_target_mean(f, j)).normalized();
+    const double angle = std::acos(std::clamp(u.dot(v), -1.0, 1.0));
     if (angle * fx < opt_.blend_separation_px) {
       ++blended_;
       return true;

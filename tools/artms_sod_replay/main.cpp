@@ -29,6 +29,7 @@
 #include "artms/astro/time.hpp"
 #include "artms/config/uplink.hpp"
 #include "artms/dynamics/forces.hpp"
+#include "artms/sod/apriori.hpp"
 #include "artms/sod/sod_filter.hpp"
 
 namespace {
@@ -90,25 +91,6 @@ std::map<std::int64_t, std::map<std::string, astro::StateVector>> read_oem(const
     }
   }
   return out;
-}
-
-// Numerical Jacobian of the QNS elements by (r, v) (angles unwrapped).
-Mat6 jacobian_qns_from_rv(const astro::StateVector& x) {
-  Mat6 J;
-  const Vec6 x0 = x.stacked();
-  for (int j = 0; j < 6; ++j) {
-    const double h = j < 3 ? 1.0 : 1e-3;
-    Vec6 xp = x0, xm = x0;
-    xp[j] += h;
-    xm[j] -= h;
-    const auto p = astro::qns_from_cartesian({xp.head<3>(), xp.tail<3>()});
-    const auto m = astro::qns_from_cartesian({xm.head<3>(), xm.tail<3>()});
-    Vec6 d = (p.as_vector() - m.as_vector()) / (2.0 * h);
-    d[4] = std::remainder(p.raan_rad - m.raan_rad, 2.0 * M_PI) / (2.0 * h);
-    d[5] = std::remainder(p.u_rad - m.u_rad, 2.0 * M_PI) / (2.0 * h);
-    J.col(j) = d;
-  }
-  return J;
 }
 
 struct Bearing {
@@ -250,26 +232,21 @@ int run(int argc, char** argv) {
       const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
       Vec6 var_rv;
       var_rv << Eigen::Vector3d::Constant(sigma_r * sigma_r), Eigen::Vector3d::Constant(sigma_v * sigma_v);
-      const Mat6 J = jacobian_qns_from_rv(g.x_eci);
+      const Mat6 J = astro::jacobian_qns_from_cartesian(g.x_eci);
       MatrixXd P = MatrixXd::Zero(6 * (n + 1), 6 * (n + 1));
       P.topLeftCorner<6, 6>() = J * var_rv.asDiagonal() * J.transpose() + Mat6::Identity() * 1e-20;
-      const double mean_motion = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(obs.a_m, 3));
       const double dt = astro::seconds_between(up.epoch, g.t);
       std::vector<astro::Roe> roes;
       for (int k = 0; k < n; ++k) {
-        // The a-priori's along-track drift to the fix (D'Amico 2010).
+        // The a-priori's along-track drift to the fix, as the navigator does.
         const auto& ap = up.apriori[static_cast<std::size_t>(k)];
-        Vec6 roe = ap.roe;
-        roe[1] += -1.5 * mean_motion * roe[0] * dt;
-        Mat6 Phi = Mat6::Identity();
-        Phi(1, 0) = -1.5 * mean_motion * dt;
-        roes.push_back(astro::Roe::from_vector(roe));
-        P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Phi * ap.P_roe * Phi.transpose();
+        roes.push_back(astro::Roe::from_vector(sod::apriori_roe_drifted(ap.roe, obs.a_m, dt)));
+        P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = sod::apriori_covariance_drifted(ap.P_roe, obs.a_m, dt);
       }
       f.initialize(g.t, f.make_state(obs, roes), P);
       started = true;
       t0 = g.t.ns_since_j2000;
-      period_s = 2.0 * M_PI / mean_motion;
+      period_s = astro::orbit_period_s(obs.a_m);
       a_m = obs.a_m;
     } else {
       f.time_update(g.t);

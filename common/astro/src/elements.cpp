@@ -219,4 +219,24 @@ QnsElements qns_from_cartesian(const StateVector& x, double gm) {
   return q;
 }
 
+Mat6 jacobian_qns_from_cartesian(const StateVector& x_eci, double gm) {
+  Mat6 J;
+  for (int j = 0; j < 6; ++j) {
+    const double h = j < 3 ? 1.0 : 1e-3;
+    StateVector a = x_eci, b = x_eci;
+    if (j < 3) {
+      a.r_m[j] += h;
+      b.r_m[j] -= h;
+    } else {
+      a.v_mps[j - 3] += h;
+      b.v_mps[j - 3] -= h;
+    }
+    Vec6 d = qns_from_cartesian(a, gm).as_vector() - qns_from_cartesian(b, gm).as_vector();
+    d[4] = std::remainder(d[4], 2.0 * M_PI);
+    d[5] = std::remainder(d[5], 2.0 * M_PI);
+    J.col(j) = d / (2.0 * h);
+  }
+  return J;
+}
+
 }  // namespace artms::astro

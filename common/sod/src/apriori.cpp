@@ -61,4 +61,19 @@ astro::Vec6 draw_apriori_error_a_roe_m(const AprioriRoe& apriori, std::mt19937_6
   return es.eigenvectors() * sd.asDiagonal() * w;
 }
 
+astro::Vec6 apriori_roe_drifted(const astro::Vec6& roe, double a_observer_m, double dt_s) {
+  const double a = a_observer_m;
+  const double n = std::sqrt(astro::kGmEarth_m3ps2 / (a * a * a));
+  astro::Vec6 out = roe;
+  out[1] += -1.5 * n * roe[0] * dt_s;
+  return out;
+}
+
+astro::Mat6 apriori_covariance_drifted(const astro::Mat6& P_roe, double a_observer_m, double dt_s) {
+  const double n = std::sqrt(astro::kGmEarth_m3ps2 / std::pow(a_observer_m, 3));
+  astro::Mat6 Phi = astro::Mat6::Identity();
+  Phi(1, 0) = -1.5 * n * dt_s;
+  return Phi * P_roe * Phi.transpose();
+}
+
 }  // namespace artms::sod

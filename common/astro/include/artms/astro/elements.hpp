@@ -60,5 +60,9 @@ QnsElements qns_from_kepler(const KeplerElements& oe);
 KeplerElements kepler_from_qns(const QnsElements& oe);
 StateVector cartesian_from_qns(const QnsElements& oe, double gm_m3ps2 = kGmEarth_m3ps2);
 QnsElements qns_from_cartesian(const StateVector& x_eci, double gm_m3ps2 = kGmEarth_m3ps2);
+// d qns / d (r, v) by central differences (1 m, 1 mm/s steps; the RAAN and u
+// differences wrapped to (-pi, pi]): maps a GNSS fix's covariance onto the
+// elements.
+Mat6 jacobian_qns_from_cartesian(const StateVector& x_eci, double gm_m3ps2 = kGmEarth_m3ps2);
 
 }  // namespace artms::astro

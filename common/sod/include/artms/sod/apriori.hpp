@@ -46,4 +46,11 @@ AprioriRoe apriori_from_age(double age_days, double a_observer_m,
 // One draw of the a-priori error (a_o * ROE meters) from N(0, P_a_roe_m2).
 astro::Vec6 draw_apriori_error_a_roe_m(const AprioriRoe& apriori, std::mt19937_64& rng);
 
+// An uplinked a-priori (dimensionless ROE and covariance at its epoch)
+// carried dt_s later with the Keplerian relative drift
+// d(dlambda)/dt = -1.5 n da (D'Amico 2010), n from the observer's a:
+// what the observer starts from, and re-initialises from.
+astro::Vec6 apriori_roe_drifted(const astro::Vec6& roe, double a_observer_m, double dt_s);
+astro::Mat6 apriori_covariance_drifted(const astro::Mat6& P_roe, double a_observer_m, double dt_s);
+
 }  // namespace artms::sod
