@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -121,6 +122,13 @@ int run(int argc, char** argv) {
                  "leave out the bearings of frames where another target's true pixel is this close (blended spots)")
       ->capture_default_str();
   app.add_option("--after-orbits", after_orbits, "NEES averaged from this many orbits on")->capture_default_str();
+  std::optional<double> underweighting, q_scale;
+  std::optional<bool> adaptive;
+  app.add_option("--underweighting", underweighting, "override tuning.sod.underweighting (beta >= 0)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--process-noise-scale", q_scale, "override tuning.sod.process_noise_scale")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--adaptive-process-noise", adaptive, "override tuning.sod.adaptive_process_noise (true/false)");
   app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES");
   CLI11_PARSE(app, argc, argv);
 
@@ -198,9 +206,9 @@ int run(int argc, char** argv) {
 
   // The filter, as the navigator starts it (navigator.cpp, initialise).
   sod::SodOptions opt;
-  opt.bearing_underweighting = up.tuning.sod.underweighting;
-  opt.adaptive.enabled = up.tuning.sod.adaptive_process_noise;
-  opt.q_target_a_roe_m2ps *= up.tuning.sod.process_noise_scale;
+  opt.bearing_underweighting = underweighting.value_or(up.tuning.sod.underweighting);
+  opt.adaptive.enabled = adaptive.value_or(up.tuning.sod.adaptive_process_noise);
+  opt.q_target_a_roe_m2ps *= q_scale.value_or(up.tuning.sod.process_noise_scale);
   opt.health.max_steps_without_update = up.tuning.sod.max_steps_without_update;
   opt.health.max_large_residuals = up.tuning.sod.max_large_residuals;
   sod::SodFilter f(forces, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{}, sod::StateLayout{n, 0},

@@ -136,7 +136,9 @@ TEST(StarlingScenarios, BothFilesLoad) {
     EXPECT_FALSE(s.crosslink.use_remote_gnss);
     EXPECT_DOUBLE_EQ(s.tuning.sod.bearing_sigma_arcsec, 0.0);  // IMP's own sigma (docs/sod.md)
     EXPECT_FALSE(s.tuning.sod.adaptive_process_noise);
-    EXPECT_DOUBLE_EQ(s.tuning.sod.process_noise_scale, 0.01);
+    // PSE's SV2 at 42 km is the tightest single-observer estimate: Q x 0.01
+    // dominated its covariance (docs/sod.md "Results").
+    EXPECT_DOUBLE_EQ(s.tuning.sod.process_noise_scale, s.name == "starling-pse" ? 0.001 : 0.01);
     EXPECT_DOUBLE_EQ(s.tuning.bod.period_s, 5400.0);
     EXPECT_EQ(s.source_path, scenario_path(c.file));
     EXPECT_TRUE(validate_scenario_file(scenario_path(c.file)).empty());

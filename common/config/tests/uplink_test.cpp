@@ -21,7 +21,7 @@ TEST(Uplink, RoundTripsAndCarriesNoOrbits) {
   EXPECT_DOUBLE_EQ(b.tuning.sod.bearing_sigma_arcsec, 0.0);
   EXPECT_DOUBLE_EQ(b.tuning.sod.underweighting, 0.5);
   EXPECT_FALSE(b.tuning.sod.adaptive_process_noise);
-  EXPECT_DOUBLE_EQ(b.tuning.sod.process_noise_scale, 0.01);
+  EXPECT_DOUBLE_EQ(b.tuning.sod.process_noise_scale, 0.001);
   EXPECT_EQ(b.force_model.gravity_degree, 10);
   EXPECT_EQ(b.swarm_ids, (std::vector<std::string>{"SV4", "SV2", "SV3"}));
   // No truth: the file mentions no orbit elements.

@@ -185,17 +185,28 @@ void ForcedPhotometry::add(double t_s, double nu) {
   while (seen_.size() > 64) seen_.pop_front();
 }
 
-std::optional<double> ForcedPhotometry::expected_before(double t_s, double window_s, int min_frames) const {
-  double sum = 0.0;
+std::optional<SnrPrior> ForcedPhotometry::expected_before(double t_s, double window_s, int min_frames) const {
+  double sum = 0.0, sum2 = 0.0;
   int n = 0;
   for (const auto& [t, nu] : seen_) {
     if (t < t_s && t_s - t < window_s) {
       sum += nu;
+      sum2 += nu * nu;
       ++n;
     }
   }
-  if (n < min_frames) return std::nullopt;
-  return sum / n;
+  if (n < min_frames || n == 0) return std::nullopt;
+  SnrPrior p;
+  p.frames = n;
+  p.mean = sum / n;
+  p.variance = n > 1 ? std::max(0.0, (sum2 - n * p.mean * p.mean) / (n - 1)) : 0.0;
+  return p;
+}
+
+double snr_for_sigma(double nu_detection, const SnrPrior& prior) {
+  const double tau2 =
+      prior.frames >= 4 ? std::max(prior.variance - 1.0, 0.0) + prior.variance / prior.frames : 0.0;
+  return std::max(1.0, (tau2 * nu_detection + prior.mean) / (tau2 + 1.0));
 }
 
 }  // namespace artms::imp

@@ -95,6 +95,7 @@ void DetectionOptions::validate() const {
   if (gaussian_fit_iterations < 1) bad("gaussian_fit_iterations must be at least 1");
   if (!(gain_e_per_dn > 0.0) || !std::isfinite(gain_e_per_dn))
     bad("gain_e_per_dn must be positive");
+  if (!(psf_model_error >= 0.0 && psf_model_error < 1.0)) bad("psf_model_error must be in [0, 1)");
   if (!(saturation_dn > 0.0)) bad("saturation_dn must be positive");
   if (!(max_sharpness >= 0.0)) bad("max_sharpness must be >= 0 (0 disables)");
   if (!(edge_margin_px >= 0.0)) bad("edge_margin_px must be >= 0");
@@ -413,6 +414,94 @@ bool gaussian_fit(const Frame& f, const DetectionOptions& o, double noise_dn, in
   return true;
 }
 
+// Centroid variance per axis (px^2), header item 5. A pixel integrates the
+// PSF, so the sampled spot has the variance s^2 + 1/12 per axis.
+//
+// Cramer-Rao bound (the Gaussian fit attains it):
+//   var = s_p^2 / N + 8 pi s_p^4 b / N^2,  s_p^2 = s^2 + 1/12.
+double cramer_rao_variance_px2(double s_psf, double n_e, double b_e2) {
+  if (!(n_e > 0.0)) return 0.0;
+  const double sp2 = s_psf * s_psf + 1.0 / 12.0;
+  return sp2 / n_e + 8.0 * std::numbers::pi * sp2 * sp2 * b_e2 / (n_e * n_e);
+}
+
+// IWCoG with a Gaussian weight of width s_w on a spot of width s_p, by
+// linearising x = sum w I x / sum w I at its fixed point: the weighted sum
+// captures r = s_w^2 / (s_w^2 + s_p^2) of the flux and the re-centring
+// multiplies a fixed window's error by 1 / r, so
+//   var = A / (N r^4) + pi s_w^4 b / (2 N^2 r^4),
+//   A = [h / (h + s_p^2)] [h s_p^2 / (h + s_p^2)],  h = s_w^2 / 2
+// (photon term: the integral of w^2 x^2 over the spot; background term: of
+// w^2 x^2 over the plane). For s_w = s_p = s this is 16 s^2 / (9 N) +
+// 8 pi s^4 b / N^2: the bound's background term but 1.78 times its photon
+// term, which is why bright stars scattered 1.4 times the Cramer-Rao figure.
+double iwcog_variance_px2(double s_w, double s_psf, double n_e, double b_e2) {
+  if (!(n_e > 0.0)) return 0.0;
+  const double sp2 = s_psf * s_psf + 1.0 / 12.0, sw2 = s_w * s_w;
+  const double r = sw2 / (sw2 + sp2), r4 = r * r * r * r;
+  const double h = 0.5 * sw2;
+  const double a = (h / (h + sp2)) * (h * sp2 / (h + sp2));
+  return a / (n_e * r4) + std::numbers::pi * sw2 * sw2 * b_e2 / (2.0 * n_e * n_e * r4);
+}
+
+// Goodness of fit of a single PSF at the centroid (header, item 6): the
+// pixel-integrated Gaussian of width s at (xc, yc), amplitude by weighted
+// linear least squares, per-pixel variance noise^2 + model / gain +
+// (model_error * model)^2; returns (chi^2 - dof) / sqrt(2 dof), dof = n - 3
+// (x, y and the amplitude fitted), or 0 with too few pixels.
+double psf_chi2_z(const Frame& f, const DetectionOptions& o, double noise_dn, int half, double xc, double yc) {
+  const int ix = static_cast<int>(std::lround(xc)), iy = static_cast<int>(std::lround(yc));
+  const double k = 1.0 / (std::numbers::sqrt2 * o.psf_sigma_px);
+  // Per-axis fraction of the PSF on each pixel of the window (erf differences).
+  std::array<double, 64> gx{}, gy{};
+  const int n_side = 2 * half + 1;
+  if (n_side > static_cast<int>(gx.size())) return 0.0;
+  for (int i = 0; i < n_side; ++i) {
+    const double u = ix - half + i - xc, v = iy - half + i - yc;
+    gx[static_cast<std::size_t>(i)] = 0.5 * (std::erf((u + 0.5) * k) - std::erf((u - 0.5) * k));
+    gy[static_cast<std::size_t>(i)] = 0.5 * (std::erf((v + 0.5) * k) - std::erf((v - 0.5) * k));
+  }
+  struct Px {
+    double v, m;
+  };
+  std::vector<Px> pts;
+  pts.reserve(static_cast<std::size_t>(n_side * n_side));
+  for (int yy = std::max(0, iy - half); yy <= std::min(f.h - 1, iy + half); ++yy) {
+    for (int xx = std::max(0, ix - half); xx <= std::min(f.w - 1, ix + half); ++xx) {
+      if (f.value(xx, yy) >= o.saturation_dn || f.masked(xx, yy) != nullptr) continue;
+      pts.push_back({f.centroid_signal(xx, yy), gx[static_cast<std::size_t>(xx - ix + half)] *
+                                                     gy[static_cast<std::size_t>(yy - iy + half)]});
+    }
+  }
+  const std::size_t n = pts.size();
+  if (n < 8) return 0.0;
+  const double var0 = noise_dn * noise_dn;
+  auto variance = [&](double model) {
+    return var0 + std::max(model, 0.0) / o.gain_e_per_dn + std::pow(o.psf_model_error * model, 2);
+  };
+  // Amplitude: ordinary least squares, then once more with the variances of that model.
+  double svm = 0.0, smm = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    svm += pts[i].v * pts[i].m;
+    smm += pts[i].m * pts[i].m;
+  }
+  double a = smm > 0.0 ? svm / smm : 0.0;
+  svm = smm = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double w = 1.0 / variance(a * pts[i].m);
+    svm += w * pts[i].v * pts[i].m;
+    smm += w * pts[i].m * pts[i].m;
+  }
+  a = smm > 0.0 ? svm / smm : 0.0;
+  double chi2 = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double r = pts[i].v - a * pts[i].m;
+    chi2 += r * r / variance(a * pts[i].m);
+  }
+  const double dof = static_cast<double>(n) - 3.0;
+  return (chi2 - dof) / std::sqrt(2.0 * dof);
+}
+
 }  // namespace
 
 DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int height,
@@ -663,13 +752,14 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
       c.peak_dn = st.peak;
       c.pixels = npx;
       c.saturated = sat;
+      c.psf_chi2_z = sat ? 0.0 : psf_chi2_z(f, o, noise_c, half, xc, yc);
       const double n_e = std::max(flux, st.peak) * o.gain_e_per_dn;
       const double b_e2 = std::pow(noise_c * o.gain_e_per_dn, 2);
-      const double s2 = s_psf * s_psf;
-      c.sigma_px = n_e > 0.0
-                       ? std::sqrt(s2 / n_e + 8.0 * std::numbers::pi * s2 * s2 * b_e2 / (n_e * n_e) +
-                                   o.centroid_sigma_floor_px * o.centroid_sigma_floor_px)
-                       : static_cast<double>(half);
+      const double var_px2 = o.centroid_method == CentroidMethod::kGaussianFit
+                                 ? cramer_rao_variance_px2(s_psf, n_e, b_e2)
+                                 : iwcog_variance_px2(o.psf_sigma_px, s_psf, n_e, b_e2);
+      c.sigma_px = n_e > 0.0 ? std::sqrt(var_px2 + o.centroid_sigma_floor_px * o.centroid_sigma_floor_px)
+                             : static_cast<double>(half);
       res.centroids.push_back(c);
     }
   }

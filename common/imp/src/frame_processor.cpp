@@ -28,6 +28,7 @@ void FrameProcessorOptions::validate() const {
   if (!(prior_max_age_s >= 0.0)) throw std::invalid_argument("FrameProcessorOptions.prior_max_age_s out of range");
   if (!(blend_radius_px >= 0.0)) throw std::invalid_argument("FrameProcessorOptions.blend_radius_px out of range");
   if (!(blend_sigma_px >= 0.0)) throw std::invalid_argument("FrameProcessorOptions.blend_sigma_px out of range");
+  if (!(blend_chi2_z > 0.0)) throw std::invalid_argument("FrameProcessorOptions.blend_chi2_z out of range");
 }
 
 FrameProcessor::FrameProcessor(Intrinsics intrinsics, const StarIdCatalog& catalog, FrameProcessorOptions options)
@@ -88,12 +89,15 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
   if (q.usable) {
     out.q_cam_from_eci = q.q_body_from_ref;
     out.residual_rms_rad = q.residual_rms_rad;
-    // Per-axis attitude 1-sigma across the boresight: from the q-method
-    // covariance, but never below the star residual scatter / sqrt(N)
-    // (the centroid sigmas leave out calibration errors).
+    // Per-axis attitude 1-sigma across the boresight: the q-method
+    // covariance, scaled by the a-posteriori variance of unit weight when the
+    // stars scatter more than their centroid sigmas say (uncatalogued stars
+    // beside catalog ones, catalog errors): 2 loss = sum w |b - A r|^2 has
+    // expectation 2N - 3 (two angles per star, three fitted).
+    const double dof = 2.0 * static_cast<double>(pairs.size()) - 3.0;
+    const double unit_variance = dof > 0.0 ? std::max(1.0, 2.0 * q.loss / dof) : 1.0;
     out.attitude_sigma_rad =
-        std::max(std::sqrt(0.5 * (q.covariance_rad2(0, 0) + q.covariance_rad2(1, 1))),
-                 q.residual_rms_rad / std::sqrt(static_cast<double>(pairs.size())));
+        std::sqrt(0.5 * (q.covariance_rad2(0, 0) + q.covariance_rad2(1, 1)) * unit_variance);
   } else {
     out.q_cam_from_eci = id.q_cam_from_eci;
     out.residual_rms_rad = id.residual_rms_rad;
@@ -126,13 +130,14 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
     cand.u_cam = dirs[n];
     cand.u_eci = (R_eci_from_cam * dirs[n]).normalized();
     double sigma_px = c.sigma_px;
+    cand.psf_chi2_z = c.psf_chi2_z;
+    cand.blended = c.psf_chi2_z > opt_.blend_chi2_z;
     for (const auto& o : det.centroids) {
       const double d = std::hypot(o.x_px - c.x_px, o.y_px - c.y_px);
-      if (d > 0.0 && d < opt_.blend_radius_px) {
-        sigma_px = std::hypot(sigma_px, opt_.blend_sigma_px);  // a blend (see FrameProcessorOptions)
-        break;
-      }
+      if (d > 0.0 && d < opt_.blend_radius_px) cand.blended = true;
     }
+    // A blend (see FrameProcessorOptions).
+    if (cand.blended) sigma_px = std::hypot(sigma_px, opt_.blend_sigma_px);
     cand.sigma_rad = std::hypot(sigma_px / K_.fx, out.attitude_sigma_rad);
     now.px.emplace_back(c.x_px, c.y_px);
     now.u_eci.push_back(cand.u_eci);
@@ -198,7 +203,7 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
                                                         const Eigen::Vector2d& predicted_px,
                                                         const Eigen::Matrix2d& cov_px2,
                                                         const AidedDetectionOptions& options, std::string* why,
-                                                        std::optional<double> expected_snr) {
+                                                        std::optional<SnrPrior> expected_snr) {
   auto refuse = [&](const std::string& reason) -> std::optional<Candidate> {
     if (why) *why = reason;
     return std::nullopt;
@@ -216,9 +221,7 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   cand.u_cam = K_.unproject({a.centroid.x_px, a.centroid.y_px});
   cand.u_eci = (last_.R_eci_from_cam * cand.u_cam).normalized();
   double sigma_px = a.centroid.sigma_px;
-  if (expected_snr && *expected_snr < a.snr) {
-    sigma_px = aided_centroid_sigma_px(std::max(*expected_snr, 1.0), a.centroid.flux_dn, options);
-  }
+  if (expected_snr) sigma_px = aided_centroid_sigma_px(snr_for_sigma(a.snr, *expected_snr), a.centroid.flux_dn, options);
   cand.sigma_rad = std::hypot(sigma_px / K_.fx, last_.attitude_sigma_rad);
   const auto& P = opt_.persistence;
   while (!aided_seen_.empty() && last_.t_s - aided_seen_.front().first > P.history_max_age_s) aided_seen_.pop_front();

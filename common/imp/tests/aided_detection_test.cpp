@@ -211,9 +211,60 @@ TEST(AidedDetection, ForcedPhotometryHistoryExcludesTheCurrentFrame) {
   f.add(60.0, 6.0);
   f.add(120.0, 100.0);  // the current frame
   ASSERT_TRUE(f.expected_before(120.0).has_value());
-  EXPECT_DOUBLE_EQ(*f.expected_before(120.0), 5.0);
+  EXPECT_DOUBLE_EQ(f.expected_before(120.0)->mean, 5.0);
+  EXPECT_DOUBLE_EQ(f.expected_before(120.0)->variance, 2.0);
+  EXPECT_EQ(f.expected_before(120.0)->frames, 2);
   EXPECT_FALSE(f.expected_before(120.0, 600.0, 3).has_value());
   EXPECT_FALSE(f.expected_before(1000.0).has_value());  // all older than the window
+}
+
+TEST(AidedDetection, SnrForSigmaWeighsTheHistoryByTheTargetsFlicker) {
+  // Steady target: the forced values scatter by the noise alone (variance 1).
+  EXPECT_NEAR(snr_for_sigma(9.0, {6.0, 1.0, 10}), (0.1 * 9.0 + 6.0) / 1.1, 1e-12);
+  // Too few frames to trust a variance: the mean.
+  EXPECT_DOUBLE_EQ(snr_for_sigma(9.0, {6.0, 5.0, 3}), 6.0);
+  // Flickering target (variance 5): mostly its own SNR.
+  EXPECT_NEAR(snr_for_sigma(9.0, {6.0, 5.0, 10}), (4.5 * 9.0 + 6.0) / 5.5, 1e-12);
+  EXPECT_DOUBLE_EQ(snr_for_sigma(0.5, {0.2, 0.0, 10}), 1.0);
+}
+
+TEST(AidedDetection, AFlickeringTargetGetsAnHonestSigma) {
+  // A target 2.8 peak sigmas on average, flickering by 0.3 mag per frame
+  // (the renderer's flight-like profile): detections come from its bright
+  // frames, which the mean of all frames under-states, so the history's
+  // mean alone gives a conservative 1-sigma; the posterior SNR does not.
+  std::mt19937_64 rng(17);
+  std::normal_distribution<double> flicker(0.0, 0.3);
+  std::uniform_real_distribution<double> sub(-0.5, 0.5);
+  AidedDetectionOptions opt;
+  opt.psf_sigma_px = kPsf;
+  ForcedPhotometry history;
+  double z2_mean = 0.0, z2_post = 0.0;
+  int hits = 0;
+  for (int i = 0; i < 1500; ++i) {
+    const double x = 100.0 + sub(rng), y = 80.0 + sub(rng);
+    const double peak = 2.8 * std::pow(10.0, -0.4 * flicker(rng));
+    const auto px = frame(rng, x, y, peak);
+    const Eigen::Vector2d pred(x + 0.3, y - 0.2);
+    const double t = 60.0 * i;
+    const auto prior = history.expected_before(t);
+    if (const auto nu = forced_snr(px, kW, kH, pred, kNoise, kPsf)) history.add(t, *nu);
+    const auto a = detect_near_prediction(px, kW, kH, pred, 0.25 * Eigen::Matrix2d::Identity(), kNoise, {}, opt);
+    if (!a.found || !prior || prior->frames < 4) continue;
+    const double e2 = (std::pow(a.centroid.x_px - x, 2) + std::pow(a.centroid.y_px - y, 2)) / 2.0;
+    const double s_mean = aided_centroid_sigma_px(std::max(prior->mean, 1.0), a.centroid.flux_dn, opt);
+    const double s_post = aided_centroid_sigma_px(snr_for_sigma(a.snr, *prior), a.centroid.flux_dn, opt);
+    z2_mean += e2 / (s_mean * s_mean);
+    z2_post += e2 / (s_post * s_post);
+    ++hits;
+  }
+  ASSERT_GT(hits, 300);
+  std::printf("[ figures ] flickering target: %d detections, normalised centroid variance with the history's mean "
+              "SNR %.2f, with the posterior SNR %.2f\n",
+              hits, z2_mean / hits, z2_post / hits);
+  EXPECT_LT(z2_mean / hits, z2_post / hits - 0.05);  // the bias this corrects
+  EXPECT_GT(z2_post / hits, 0.85);
+  EXPECT_LT(z2_post / hits, 1.2);
 }
 
 }  // namespace

@@ -81,13 +81,33 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
 // A target's recent forced-photometry SNRs (one per frame at its predicted
 // pixel). expected_before(t) is their mean over (t - window_s, t), the
 // current frame excluded, when at least min_frames are there.
+struct SnrPrior {
+  double mean = 0.0;      // mean forced SNR of the recent frames
+  double variance = 0.0;  // their sample variance (0 with fewer than 2 frames)
+  int frames = 0;
+};
 class ForcedPhotometry {
  public:
   void add(double t_s, double nu);
-  [[nodiscard]] std::optional<double> expected_before(double t_s, double window_s = 600.0, int min_frames = 2) const;
+  [[nodiscard]] std::optional<SnrPrior> expected_before(double t_s, double window_s = 600.0, int min_frames = 2) const;
 
  private:
   std::deque<std::pair<double, double>> seen_;  // (t_s, nu), oldest first
 };
+
+// The SNR for an aided detection's 1-sigma: the current frame's true SNR
+// estimated from the detection's own nu (noise 1-sigma 1) and the recent
+// frames' forced photometry as a prior (docs/imp_samus.md section 9),
+//   nu = (tau^2 nu_detection + mean) / (tau^2 + 1),
+//   tau^2 = max(variance - 1, 0) + variance / frames,
+// tau^2 the spread of the true SNR from frame to frame (the forced values
+// scatter by the noise's 1 plus the target's own fluctuation; flight-like
+// targets flicker by 0.3 mag) plus the uncertainty of the mean. A steady
+// target gets the history's mean (a detection near the threshold is one the
+// noise lifted, so its own nu over-states the source); a flickering one
+// leans on its own nu (a detection is more likely in a frame where the
+// target is bright, which the mean of all frames under-states). Variance
+// is only trusted from 4 frames on (below: tau^2 = 0). At least 1.
+[[nodiscard]] double snr_for_sigma(double nu_detection, const SnrPrior& prior);
 
 }  // namespace artms::imp

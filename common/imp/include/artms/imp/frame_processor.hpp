@@ -33,6 +33,8 @@ struct Candidate {
   Eigen::Vector3d u_cam = Eigen::Vector3d::UnitZ();  // unit line of sight, camera components
   Eigen::Vector3d u_eci = Eigen::Vector3d::UnitZ();  // unit line of sight, ECI (J2000) components
   double sigma_rad = 0.0;  // 1-sigma per axis: centroid noise and attitude uncertainty
+  double psf_chi2_z = 0.0;  // detect()'s blend statistic (Centroid::psf_chi2_z)
+  bool blended = false;     // blend_sigma_px was added (a neighbour, or the PSF fit)
 };
 
 struct PersistenceOptions {
@@ -77,6 +79,11 @@ struct FrameProcessorOptions {
   // a good fraction of a pixel (two targets 5 px apart in the IT formation).
   double blend_radius_px = 6.0;
   double blend_sigma_px = 0.5;
+  // The same for a candidate whose single-PSF fit is poor
+  // (Centroid::psf_chi2_z above blend_chi2_z): a neighbour too faint or too
+  // close to be detected on its own, typically an uncatalogued star 2-4 px
+  // away. For an isolated source the statistic is about N(0, 1).
+  double blend_chi2_z = 5.0;
   void validate() const;
 };
 
@@ -117,14 +124,14 @@ class FrameProcessor {
   // source seen again at the same direction a frame later is a star.
   [[nodiscard]] std::optional<bool> source_at(std::span<const std::uint16_t> pixels, const Eigen::Vector3d& u_eci,
                                               const AidedDetectionOptions& options, double tolerance_px = 1.0) const;
-  // expected_snr: the target's forced-photometry SNR of the recent frames
-  // (ForcedPhotometry); when below the detection's own SNR, the centroid
-  // 1-sigma is computed with it (a detection near the threshold is one the
-  // noise lifted; the Cramer-Rao bound at the source's real SNR matches the
-  // scatter, docs/imp_samus.md section 9).
+  // expected_snr: the target's forced photometry of the recent frames
+  // (ForcedPhotometry); when given, the centroid 1-sigma is computed at
+  // snr_for_sigma(the detection's own SNR, expected_snr) instead of the
+  // detection's own SNR, which near the threshold over-states the source
+  // (docs/imp_samus.md section 9).
   std::optional<Candidate> aided_candidate(std::span<const std::uint16_t> pixels, const Eigen::Vector2d& predicted_px,
                                            const Eigen::Matrix2d& cov_px2, const AidedDetectionOptions& options,
-                                           std::string* why = nullptr, std::optional<double> expected_snr = std::nullopt);
+                                           std::string* why = nullptr, std::optional<SnrPrior> expected_snr = std::nullopt);
   // Forced photometry at a pixel of the frame process() took last
   // (pixels: that frame), with its noise; nullopt near the edge or without a frame.
   [[nodiscard]] std::optional<double> forced_snr(std::span<const std::uint16_t> pixels, const Eigen::Vector2d& px,
