@@ -373,6 +373,7 @@ int run(const runtime::ServiceOptions& opt) {
         const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
         for (int i = 0; i < 4; ++i) rep.q_cam_from_eci[i] = q[static_cast<std::size_t>(i)];
         rep.residual_arcsec = fr.residual_rms_rad / astro::kArcsecToRad;
+        rep.attitude_sigma_arcsec = fr.attitude_sigma_rad / astro::kArcsecToRad;
         // Single detections SOD assigned in earlier frames: a source at the
         // same inertial direction in this frame is a faint star (refused);
         // otherwise (or off this frame's sensor) the bearing is released.

@@ -100,7 +100,8 @@ int run(const runtime::ServiceOptions& opt) {
     fs::create_directories(dir / "imp" / o.spacecraft);
     imp_attitude[o.spacecraft] = std::make_unique<SortedSink>(
         dir / "imp" / o.spacecraft / "attitude.csv",
-        "frame,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,candidates,hot_pixels_removed,"
+        "frame,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec,candidates,"
+        "hot_pixels_removed,"
         "uncatalogued_stars_removed");
     imp_meas[o.spacecraft] = std::make_unique<SortedSink>(
         dir / "imp" / o.spacecraft / "measurements.csv",
@@ -213,13 +214,13 @@ int run(const runtime::ServiceOptions& opt) {
       static const char* kStatus[] = {"ok", "no_detections", "not_identified", "corrupt", "end"};
       if (r.status == 0) {
         it->second->add(r.t_tt_ns, id,
-                        fmt("%u,%lld,ok,%.12f,%.12f,%.12f,%.12f,%u,%.3f,%u,%u,%u", r.frame_seq,
+                        fmt("%u,%lld,ok,%.12f,%.12f,%.12f,%.12f,%u,%.3f,%.3f,%u,%u,%u", r.frame_seq,
                             static_cast<long long>(r.t_tt_ns), r.q_cam_from_eci[0], r.q_cam_from_eci[1],
                             r.q_cam_from_eci[2], r.q_cam_from_eci[3], r.stars_matched, r.residual_arcsec,
-                            r.candidates, r.hot_pixels_removed, r.uncatalogued_stars_removed));
+                            r.attitude_sigma_arcsec, r.candidates, r.hot_pixels_removed, r.uncatalogued_stars_removed));
       } else if (r.status < 4) {
         it->second->add(r.t_tt_ns, id,
-                        fmt("%u,%lld,%s,,,,,%u,,0,0,0", r.frame_seq, static_cast<long long>(r.t_tt_ns),
+                        fmt("%u,%lld,%s,,,,,%u,,,0,0,0", r.frame_seq, static_cast<long long>(r.t_tt_ns),
                             kStatus[r.status], r.stars_matched));
       }
       for (std::uint32_t k = 0; k < r.measurements._length; ++k) {

@@ -32,6 +32,7 @@ def main():
     eligible = solved = wrong = 0
     labelled = []  # (t_ns, truth target, track id) of candidates matching a target
     cross, roll, bearing = [], [], []
+    cross_z2 = []  # per-axis squared cross-boresight error / claimed attitude 1-sigma
     tracked_rows = []  # (track id, truth target or None)
     for side in sorted(glob.glob(os.path.join(frames_dir, "frame_*.json"))):
         k = int(os.path.basename(side)[6:12])
@@ -66,6 +67,10 @@ def main():
         # Small-angle error vector (camera axes): x, y cross-boresight, z roll.
         e = np.array([D[2, 1] - D[1, 2], D[0, 2] - D[2, 0], D[1, 0] - D[0, 1]]) / 2
         cross.append(math.hypot(e[0], e[1]))
+        sig = a.get("attitude_sigma_arcsec")
+        if sig:
+            s_rad = float(sig) * math.pi / (180 * 3600)
+            cross_z2.append((e[0] ** 2 + e[1] ** 2) / (2 * s_rad ** 2))
         roll.append(abs(e[2]))
         for t in j["targets"]:
             if not t["visible"] or t["x_px"] is None:
@@ -117,6 +122,8 @@ def main():
         "wrong_fraction": wrong / solved if solved else None,
         "cross_boresight_1sigma_arcsec": float(np.sqrt(np.mean(np.square(cross))) * arc) if cross else None,
         "cross_boresight_max_arcsec": float(max(cross) * arc) if cross else None,
+        # 1 when attitude_sigma_arcsec (per axis) matches the errors.
+        "cross_boresight_error_over_sigma_rms": float(np.sqrt(np.mean(cross_z2))) if cross_z2 else None,
         "roll_1sigma_arcsec": float(np.sqrt(np.mean(np.square(roll))) * arc) if roll else None,
         "target_detections_matched": len(bearing),
         "target_bearing_1sigma_arcsec": float(np.sqrt(np.mean(np.square(bearing))) * arc) if bearing else None,

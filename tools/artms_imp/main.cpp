@@ -109,7 +109,7 @@ int run(int argc, char** argv) {
     fs::create_directories(out);
     std::ofstream att(fs::path(out) / "attitude.csv"), meas(fs::path(out) / "measurements.csv"),
         tracks(fs::path(out) / "tracks.csv");
-    att << "frame,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec\n";
+    att << "frame,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec\n";
     meas << "frame,t_tt_ns,track_id,x_px,y_px,ux_eci,uy_eci,uz_eci,az_rad,el_rad,sigma_rad\n";
     tracks << "track_id,first_frame,last_frame,measurements,segments,fit_rms_arcsec\n";
     // Candidates per frame; the track that took each (SAMUS decides later).
@@ -154,7 +154,7 @@ int run(int argc, char** argv) {
       } catch (const std::exception& e) {
         ++corrupt;
         std::fprintf(stderr, "artms-imp: skipping %s: %s\n", path.c_str(), e.what());
-        std::snprintf(line, sizeof line, "%d,%lld,corrupt,,,,,0,\n", k, static_cast<long long>(t_ns));
+        std::snprintf(line, sizeof line, "%d,%lld,corrupt,,,,,0,,\n", k, static_cast<long long>(t_ns));
         att << line;
         continue;
       }
@@ -163,16 +163,16 @@ int run(int argc, char** argv) {
       hot += fr.hot_pixels_removed;
       uncatalogued += fr.uncatalogued_stars_removed;
       if (!fr.attitude_usable) {
-        std::snprintf(line, sizeof line, "%d,%lld,%s,,,,,%d,\n", k, static_cast<long long>(t_ns), fr.status.c_str(),
+        std::snprintf(line, sizeof line, "%d,%lld,%s,,,,,%d,,\n", k, static_cast<long long>(t_ns), fr.status.c_str(),
                       fr.stars_matched);
         att << line;
         continue;
       }
       ++solved;
       const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
-      std::snprintf(line, sizeof line, "%d,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f\n", k,
+      std::snprintf(line, sizeof line, "%d,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f,%.3f\n", k,
                     static_cast<long long>(t_ns), q[0], q[1], q[2], q[3], fr.stars_matched,
-                    fr.residual_rms_rad / astro::kArcsecToRad);
+                    fr.residual_rms_rad / astro::kArcsecToRad, fr.attitude_sigma_rad / astro::kArcsecToRad);
       att << line;
       for (std::size_t i = 0; i < fr.candidates.size(); ++i) {
         row_of[{k, static_cast<int>(i)}] = rows.size();

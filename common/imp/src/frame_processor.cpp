@@ -79,7 +79,10 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
   std::vector<WeightedPair> pairs;
   for (const auto& [idx, cat_id] : id.matches) {
     const auto& c = det.centroids[order[static_cast<std::size_t>(idx)]];
-    const double s = std::max(c.sigma_px, 0.01) / K_.fx;
+    // A star whose single-PSF fit shows a neighbour (an uncatalogued star
+    // beside it) is weighted as a blend, like a candidate below.
+    const double s_px = c.psf_chi2_z > opt_.blend_chi2_z ? std::hypot(c.sigma_px, opt_.blend_sigma_px) : c.sigma_px;
+    const double s = std::max(s_px, 0.01) / K_.fx;
     pairs.push_back({dirs[static_cast<std::size_t>(idx)],
                      catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci, 1.0 / (s * s)});
   }
