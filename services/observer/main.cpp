@@ -449,7 +449,7 @@ int run(const runtime::ServiceOptions& opt) {
             add(static_cast<std::uint32_t>(m.frame), t_ns, m.track_id, m.c);
             const auto qa = frame_attitude.find(static_cast<std::uint32_t>(m.frame));
             if (navigator && qa != frame_attitude.end()) {
-              navigator->add_bearing(astro::TimeTT{t_ns}, m.track_id, m.c.u_eci, qa->second, m.c.sigma_rad);
+              navigator->add_bearing(astro::TimeTT{t_ns}, m.track_id, m.c.u_eci, qa->second, m.c.sigma_rad, m.segment);
             }
           }
         } else {
@@ -486,7 +486,7 @@ int run(const runtime::ServiceOptions& opt) {
         const auto qa = frame_attitude.find(static_cast<std::uint32_t>(m.frame));
         if (navigator && qa != frame_attitude.end()) {
           navigator->add_bearing(astro::TimeTT{static_cast<std::int64_t>(std::llround(m.t_s * 1e9))}, m.track_id,
-                                 m.c.u_eci, qa->second, m.c.sigma_rad);
+                                 m.c.u_eci, qa->second, m.c.sigma_rad, m.segment);
         }
         out.push_back(imp_measurement(static_cast<std::uint32_t>(m.frame),
                                       static_cast<std::int64_t>(std::llround(m.t_s * 1e9)), m.track_id, m.c));

@@ -168,8 +168,9 @@ Navigator::Event Navigator::bearing_event(astro::TimeTT t, int kind, int track, 
 }
 
 void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci,
-                            const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
+                            const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad, int segment) {
   Event e = bearing_event(t, 1, track, u_eci, q_cam_from_eci, imp_sigma_rad);
+  e.segment = segment;
   e.direct = direct_assigned(t, u_eci);
   queue_.push_back(e);
 }
@@ -253,6 +254,17 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
     if (f.update_bearing(m).usable) ++local_[static_cast<std::size_t>(e.track)];
   } else {
     auto& as = tracks_[e.track];
+    // A track that SAMUS joined across a gap since it was bound may have
+    // come back on another target (IT: SAMUS's first track follows SV3, loses
+    // it in a gap and comes back on SV2, 5 px away; the first bearings after
+    // the join reached SV3 before the gate refused three, and in 2 of 20
+    // runs SV3's estimate was then too far off for its own track to be
+    // bound for hours). It is associated again from its next bearings.
+    if (as.target >= 0 && e.segment != as.segment) {
+      messages_.push_back("IMP track " + std::to_string(e.track) + " joined across a gap: unbound from target " +
+                          target_ids_[static_cast<std::size_t>(as.target)] + ", associated again");
+      as = Association{};
+    }
     as.last = e.t;
     if (as.target < 0) {
       // Association: this measurement against every target's prediction.
@@ -286,6 +298,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
         }
         if (best < opt_.association_max_d2 && second > opt_.association_ambiguity * best && !taken) {
           as.target = static_cast<int>(order[0]);
+          as.segment = e.segment;
           char buf[200];
           std::snprintf(buf, sizeof buf, "IMP track %d bound to target %s (mean d2 %.2f over %d bearings, next %.1f)",
                         e.track, target_ids_[order[0]].c_str(), best, as.n, second);

@@ -134,10 +134,11 @@ class Navigator {
   [[nodiscard]] std::size_t remote_unassigned() const { return remote_unassigned_; }
   [[nodiscard]] std::size_t remote_late() const { return remote_late_; }
   [[nodiscard]] std::size_t remote_repeated() const { return remote_repeated_; }  // duplicates dropped
-  // A bearing released by SAMUS: time tag, track, unit line of sight (ECI)
-  // and the attitude of its frame.
+  // A bearing released by SAMUS: time tag, track, unit line of sight (ECI),
+  // the attitude of its frame and the track's segment
+  // (TrackedMeasurement::segment).
   void add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci,
-                   double imp_sigma_rad);
+                   double imp_sigma_rad, int segment = 1);
   // Processes queued events up to t_safe (and at most up to t_now - max_lag_s
   // behind). samus supplies the tracking plane for association.
   void advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Samus& samus);
@@ -196,6 +197,7 @@ class Navigator {
     int kind = 0;  // 0 GNSS, 1 bearing of a SAMUS track, 2 bearing assigned by SOD's prediction, 3 remote bearing
     sod::GnssMeasurement gnss;
     int track = -1;   // kind 1: SAMUS track; kind 2: target index
+    int segment = 1;  // kind 1: the track's segment (TrackedMeasurement::segment)
     Eigen::Vector3d u_eci = Eigen::Vector3d::Zero();
     Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
     double imp_sigma_rad = 0.0;
@@ -223,6 +225,7 @@ class Navigator {
     int target = -1;
     astro::TimeTT last;
     int gated_in_row = 0;  // successive bearings of the bound track refused by the gate
+    int segment = 0;       // the track's segment when it was bound
   };
 
   const config::ObserverUplink& up_;

@@ -204,7 +204,7 @@ void Samus::release(Family& f, std::int64_t upto_seq, std::vector<TrackedMeasure
   const auto& meas = f.branches[0].meas;
   while (f.released < meas.size() && meas[f.released].seq <= upto_seq) {
     const Meas& m = meas[f.released++];
-    out.push_back({m.frame, m.t_s, f.id, m.candidate, m.c});
+    out.push_back({m.frame, m.t_s, f.id, m.candidate, m.c, f.segments});
   }
 }
 

@@ -5,6 +5,7 @@
 // from a stale a-priori to convergence; a clutter bearing is never assigned.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <deque>
 #include <utility>
 
@@ -169,6 +170,17 @@ TEST(NavigatorMode3, Mode1IgnoresRemoteBearings) {
 namespace artms::observer {
 namespace {
 
+// Mode 1 uplink whose a-priori is the truth with a 1 m 1-sigma per a*ROE.
+config::ObserverUplink uplink_at_truth(const Truth& truth, std::mt19937_64& rng) {
+  config::ObserverUplink up = uplink(truth, 1, rng);
+  for (int k = 0; k < truth.n_targets(); ++k) {
+    up.apriori[static_cast<std::size_t>(k)].roe = truth.roe(k).as_vector();
+    up.apriori[static_cast<std::size_t>(k)].P_roe =
+        astro::Mat6::Identity() * std::pow(1.0 / truth.observer().a_m, 2);
+  }
+  return up;
+}
+
 std::pair<std::size_t, std::uint32_t> blend_run(bool aligned, double fx_px) {
   auto a_roe = starling_a_roe_m();
   a_roe.resize(2);
@@ -178,12 +190,7 @@ std::pair<std::size_t, std::uint32_t> blend_run(bool aligned, double fx_px) {
   }
   Truth truth(kT0, observer_at_start(), a_roe);
   std::mt19937_64 rng(5);
-  config::ObserverUplink up = uplink(truth, 1, rng);
-  for (int k = 0; k < 2; ++k) {
-    up.apriori[static_cast<std::size_t>(k)].roe = truth.roe(k).as_vector();
-    up.apriori[static_cast<std::size_t>(k)].P_roe =
-        astro::Mat6::Identity() * std::pow(1.0 / truth.observer().a_m, 2);
-  }
+  config::ObserverUplink up = uplink_at_truth(truth, rng);
   up.camera_calibration.fx_px = fx_px;
   Navigator nav(up, j2_forces());
   const imp::Samus samus;
@@ -214,6 +221,62 @@ TEST(NavigatorBlend, BearingsOfTargetsPredictedOnTheSameSpotAreLeftOut) {
   const auto [blended_nofx, fused_nofx] = blend_run(true, 0.0);
   EXPECT_EQ(blended_nofx, 0u);
   EXPECT_GT(fused_nofx, 50u);
+}
+
+}  // namespace
+}  // namespace artms::observer
+
+// A SAMUS track joined across a gap may come back on another target (IT:
+// SAMUS's first track follows SV3, loses it in a gap and comes back on SV2):
+// a bound track whose segment changes is associated again, so the other
+// target's bearings never reach the first. Track 7 carries target 0 for 20
+// minutes (segment 1), then target 1 (segment 2). A-priori = truth, 1 m.
+namespace artms::observer {
+namespace {
+
+TEST(NavigatorTracks, ATrackJoinedAcrossAGapIsAssociatedAgain) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  a_roe[1] << -3.0, -80e3, -400.0, 250.0, -300.0, 350.0;  // behind too: both seen by an anti-velocity camera
+  Truth truth(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng(3);
+  config::ObserverUplink up = uplink_at_truth(truth, rng);
+  Navigator nav(up, j2_forces());
+  imp::Samus samus;
+  imp::TrackerInput in;
+  in.observer_eci = truth.observer_eci();
+  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
+  samus.process(in, {});  // sets SAMUS's tracking plane
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double s = 5 * astro::kArcsecToRad;
+  std::vector<std::string> messages;
+  for (int k = 0; k <= 40; ++k) {
+    const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+    truth.advance_to(t);
+    nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
+    if (k > 0) {
+      const int target = k <= 20 ? 0 : 1;
+      const Eigen::Vector3d u = (truth.target_eci(target).r_m - truth.observer_eci().r_m).normalized();
+      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+      nav.add_bearing(t, 7, (u + s * g(rng) * a + s * g(rng) * b).normalized(), Eigen::Quaterniond::Identity(), s,
+                      target + 1);
+    }
+    nav.advance(t, t, samus);
+    for (auto& m : nav.take_messages()) messages.push_back(std::move(m));
+  }
+  nav.finish(samus);
+  const NavReport r = nav.report(truth.t());
+  const auto has = [&](const std::string& text) {
+    return std::any_of(messages.begin(), messages.end(),
+                       [&](const std::string& m) { return m.find(text) != std::string::npos; });
+  };
+  EXPECT_TRUE(has("IMP track 7 bound to target SV2"));
+  EXPECT_TRUE(has("IMP track 7 joined across a gap: unbound from target SV2"));
+  EXPECT_TRUE(has("IMP track 7 bound to target SV3"));
+  EXPECT_FALSE(has("refused by the gate"));
+  // 3 bearings of each segment go to the association.
+  EXPECT_EQ(r.targets[0].local_measurements, 17u);
+  EXPECT_EQ(r.targets[1].local_measurements, 17u);
 }
 
 }  // namespace

@@ -114,6 +114,7 @@ struct TrackedMeasurement {
   int track_id = -1;
   int candidate = -1;  // index into that frame's candidates
   Candidate c;
+  int segment = 1;  // the track's segments (1 + joins across gaps) when this measurement was released
 };
 
 struct TrackInfo {
