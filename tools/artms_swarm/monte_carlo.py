@@ -11,7 +11,8 @@ freedom divided by R, R = runs), and the fraction of steps after convergence
 inside the band. "After convergence": from the latest convergence_orbits of
 the runs (summary.json), or the second half of the run when a run never
 converged; the same fraction after the median convergence is reported too
-(a single slow run moves the latest one to the end of the run). Writes DIR/mc_summary.json and DIR/mc_nees_<observer>_<target>.png.
+(a single slow run moves the latest one to the end of the run). Writes
+DIR/mc_summary.json and DIR/mc_nees_<observer>_<target>.png.
 Needs Debian's python3-numpy, python3-scipy, python3-matplotlib.
 """
 import argparse, csv, json, os, subprocess, sys

@@ -21,6 +21,16 @@ void PersistenceOptions::validate() const {
   if (!(history_max_age_s > 0.0)) bad("history_max_age_s");
 }
 
+namespace {
+
+// A centroid's 1-sigma (pixels) with blend_sigma_px added when it is a blend
+// (FrameProcessorOptions).
+double blend_sigma_px(double sigma_px, bool blended, const FrameProcessorOptions& o) {
+  return blended ? std::hypot(sigma_px, o.blend_sigma_px) : sigma_px;
+}
+
+}  // namespace
+
 void FrameProcessorOptions::validate() const {
   star_id.validate();
   persistence.validate();
@@ -81,8 +91,7 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
     const auto& c = det.centroids[order[static_cast<std::size_t>(idx)]];
     // A star whose single-PSF fit shows a neighbour (an uncatalogued star
     // beside it) is weighted as a blend, like a candidate below.
-    const double s_px = c.psf_chi2_z > opt_.blend_chi2_z ? std::hypot(c.sigma_px, opt_.blend_sigma_px) : c.sigma_px;
-    const double s = std::max(s_px, 0.01) / K_.fx;
+    const double s = std::max(blend_sigma_px(c.sigma_px, c.psf_chi2_z > opt_.blend_chi2_z, opt_), 0.01) / K_.fx;
     pairs.push_back({dirs[static_cast<std::size_t>(idx)],
                      catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci, 1.0 / (s * s)});
   }
@@ -132,16 +141,13 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, doub
     cand.flux_dn = c.flux_dn;
     cand.u_cam = dirs[n];
     cand.u_eci = (R_eci_from_cam * dirs[n]).normalized();
-    double sigma_px = c.sigma_px;
     cand.psf_chi2_z = c.psf_chi2_z;
     cand.blended = c.psf_chi2_z > opt_.blend_chi2_z;
     for (const auto& o : det.centroids) {
       const double d = std::hypot(o.x_px - c.x_px, o.y_px - c.y_px);
       if (d > 0.0 && d < opt_.blend_radius_px) cand.blended = true;
     }
-    // A blend (see FrameProcessorOptions).
-    if (cand.blended) sigma_px = std::hypot(sigma_px, opt_.blend_sigma_px);
-    cand.sigma_rad = std::hypot(sigma_px / K_.fx, out.attitude_sigma_rad);
+    cand.sigma_rad = std::hypot(blend_sigma_px(c.sigma_px, cand.blended, opt_) / K_.fx, out.attitude_sigma_rad);
     now.px.emplace_back(c.x_px, c.y_px);
     now.u_eci.push_back(cand.u_eci);
     // Uncatalogued star: same inertial direction as an object of an earlier frame.
