@@ -27,6 +27,8 @@
 #include "artms/imp/detection.hpp"
 #include "artms/imp/frame_processor.hpp"
 #include "artms/imp/samus.hpp"
+#include "artms/fsw/observer.hpp"
+#include "artms/render/camera_calibration.hpp"
 #include "artms/imp/star_id.hpp"
 #include "orbit_table.hpp"
 
@@ -67,15 +69,10 @@ int run(int argc, char** argv) {
   }
   try {
     const imaging::CameraModel cam = imaging::CameraModel::load(camera_path);
-    imp::Intrinsics K;
-    K.width = cam.width_px;
-    K.height = cam.height_px;
-    K.fx = cam.fx_px;
-    K.fy = cam.fy_px;
-    K.cx = cam.cx_px;
-    K.cy = cam.cy_px;
-    K.k1 = cam.k1;
-    K.k2 = cam.k2;
+    // The camera file mapped exactly as the launcher uplinks it and the
+    // observer builds IMP from it (geometry, PSF, gain, saturation).
+    const config::CameraCalibration calib = render::calibration_from(cam);
+    const imp::Intrinsics K = fsw::intrinsics_from(calib);
     std::vector<fs::path> frames;
     const std::regex name(R"(frame_(\d+)\.png)");
     for (const auto& e : fs::directory_iterator(frames_dir)) {
@@ -104,7 +101,7 @@ int run(int argc, char** argv) {
     if (!orbit_path.empty()) orbit = OrbitTable::load(orbit_path);
     std::optional<imp::Samus> samus;
     if (orbit) samus.emplace(samus_opt);
-    imp::FrameProcessor processor(K, catalog);
+    imp::FrameProcessor processor(K, catalog, fsw::frame_processor_options(calib, config::ImpTuning{}));
 
     fs::create_directories(out);
     std::ofstream att(fs::path(out) / "attitude.csv"), meas(fs::path(out) / "measurements.csv"),

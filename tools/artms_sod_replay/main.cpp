@@ -12,6 +12,8 @@
 // to the target whose true pixel is within 3 px, where the observer
 // associates them itself), never onboard. Mode 1 only (own bearings).
 #include <CLI/CLI.hpp>
+
+#include "artms/fsw/navigator.hpp"
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
@@ -205,12 +207,11 @@ int run(int argc, char** argv) {
   }
 
   // The filter, as the navigator starts it (navigator.cpp, initialise).
-  sod::SodOptions opt;
-  opt.bearing_underweighting = underweighting.value_or(up.tuning.sod.underweighting);
-  opt.adaptive.enabled = adaptive.value_or(up.tuning.sod.adaptive_process_noise);
-  opt.q_target_a_roe_m2ps *= q_scale.value_or(up.tuning.sod.process_noise_scale);
-  opt.health.max_steps_without_update = up.tuning.sod.max_steps_without_update;
-  opt.health.max_large_residuals = up.tuning.sod.max_large_residuals;
+  config::SodTuning tuning = up.tuning.sod;
+  tuning.underweighting = underweighting.value_or(tuning.underweighting);
+  tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
+  tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
+  const sod::SodOptions opt = fsw::sod_options(tuning);
   sod::SodFilter f(forces, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{}, sod::StateLayout{n, 0},
                    opt);
   const double sigma_r = up.observer.gnss.sigma_position_m, sigma_v = up.observer.gnss.sigma_velocity_mps;

@@ -32,8 +32,10 @@
 #include "artms/astro/roe.hpp"
 #include <random>
 #include "artms/io/oem.hpp"
+#include "artms/render/camera_calibration.hpp"
 #include "artms/runtime/runtime.hpp"
 #include "evaluation.hpp"
+#include "in_process.hpp"
 #include "memory.hpp"
 
 namespace {
@@ -62,24 +64,6 @@ void add_ground_apriori(const artms::config::Scenario& sc, const artms::config::
     t.P_roe = ap.P_roe;
     up.apriori.push_back(t);
   }
-}
-
-// Ground calibration of a camera model (config/cameras/<model>.yaml).
-artms::config::CameraCalibration camera_calibration(const std::string& model) {
-  const auto cam = artms::imaging::CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/" + model + ".yaml");
-  artms::config::CameraCalibration c;
-  c.width_px = cam.width_px;
-  c.height_px = cam.height_px;
-  c.fx_px = cam.fx_px;
-  c.fy_px = cam.fy_px;
-  c.cx_px = cam.cx_px;
-  c.cy_px = cam.cy_px;
-  c.k1 = cam.k1;
-  c.k2 = cam.k2;
-  c.psf_sigma_px = cam.psf_sigma_px;
-  c.gain_e_per_dn = cam.gain_e_per_dn;
-  c.saturation_dn = cam.max_dn();
-  return c;
 }
 
 void write_onboard_star_catalog(const std::filesystem::path& path, artms::astro::TimeTT epoch) {
@@ -290,7 +274,7 @@ int cmd_validate(const std::string& path) {
 
 int cmd_run(const std::string& scenario_path, const std::string& duration, double orbits,
             std::optional<std::uint64_t> seed, const std::string& rate_text, std::string out,
-            double step_timeout_s) {
+            double step_timeout_s, bool in_process) {
   config::Scenario sc;
   try {
     sc = config::load_scenario(scenario_path);
@@ -310,6 +294,11 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
       return 2;
     }
   }
+  if (in_process && rate > 0.0) {
+    std::cerr << "artms-swarm: --in-process runs in lock step as fast as possible; --rate " << rate_text
+              << " needs the DDS run\n";
+    return 2;
+  }
   if (out.empty()) {
     char stamp[32];
     const std::time_t now = std::time(nullptr);
@@ -319,25 +308,6 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   const fs::path dir = fs::absolute(out);
   fs::create_directories(dir / "logs");
   for (const char* stale : {"summary.json", "timing.json", "truth.oem"}) fs::remove(dir / stale);
-
-  // Each run gets its own DDS domain so that concurrent runs never meet.
-  if (std::getenv("ARTMS_DDS_DOMAIN") == nullptr) {
-    setenv("ARTMS_DDS_DOMAIN", std::to_string(1 + getpid() % 200).c_str(), 1);
-  }
-  dds::ensure_loopback_config();
-
-  struct sigaction sa{};
-  sa.sa_handler = on_signal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-
-  // The launcher follows the clock for progress (a reader of the tick topic).
-  dds::Participant participant(dds::domain_from_environment());
-  runtime::TopicSet topics(participant);
-  dds::Reader<artms_msg_ClockTick> ticks(participant, topics.clock_tick, runtime::clock_qos());
-  dds::WaitSet ws(participant);
-  ws.attach(ticks.handle());
 
   const std::vector<std::string> services = config::services(sc);
   std::vector<Child> children;
@@ -352,11 +322,73 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   write_onboard_star_catalog(dir / "uplink" / "star_catalog.csv", sc.epoch);
   for (const auto& o : sc.observers) {
     config::ObserverUplink up = config::make_uplink(sc, o.spacecraft);
-    up.camera_calibration = camera_calibration(o.camera.model);
+    up.camera_calibration = render::calibration_of_model(o.camera.model);
     up.star_catalog_file = "star_catalog.csv";
     if (o.mode == 1 || o.mode == 3) add_ground_apriori(sc, o, up);
     config::write_uplink(up, (dir / "uplink" / (o.spacecraft + ".json")).string());
   }
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  const bool tty = isatty(STDERR_FILENO) != 0;
+  double sim_s = 0.0;
+  std::string failure;
+  swarm::MemorySampler memory;
+  auto last_print = Clock::now() - std::chrono::seconds(10);
+  const auto show_progress = [&]() {
+    const auto now = Clock::now();
+    if (now - last_print <= std::chrono::milliseconds(tty ? 200 : 5000)) return;
+    last_print = now;
+    const double wall = std::chrono::duration<double>(now - wall0).count();
+    const double rtf = wall > 0 ? sim_s / wall : 0.0;
+    const double frac = sc.duration_s > 0 ? sim_s / sc.duration_s : 1.0;
+    const double eta = rtf > 0 ? (sc.duration_s - sim_s) / rtf : 0.0;
+    if (tty) {
+      const int width = 30, filled = static_cast<int>(frac * width);
+      std::fprintf(stderr, "\r[%s%s] %5.1f%%  sim %s / %s  %.0fx real time  ETA %s   ",
+                   std::string(static_cast<std::size_t>(filled), '#').c_str(),
+                   std::string(static_cast<std::size_t>(width - filled), '.').c_str(), 100 * frac, hms(sim_s).c_str(),
+                   hms(sc.duration_s).c_str(), rtf, hms(eta).c_str());
+    } else {
+      std::fprintf(stderr, "artms-swarm: sim %s / %s (%.0f%%), %.0fx real time, ETA %s\n", hms(sim_s).c_str(),
+                   hms(sc.duration_s).c_str(), 100 * frac, rtf, hms(eta).c_str());
+    }
+  };
+  if (in_process) {
+    // The same objects in this process, no DDS (in_process.hpp); the
+    // processes of summary.json are the components that stand for them.
+    for (const auto& name : services) children.push_back({name, -1, false, 0, false});
+    std::fprintf(stderr, "artms-swarm: %s, %zu components in one process (--in-process), %s simulated, seed %llu\n",
+                 sc.name.c_str(), children.size(), hms(sc.duration_s).c_str(), static_cast<unsigned long long>(sc.seed));
+    const swarm::InProcessResult r = swarm::run_in_process(
+        sc, dir,
+        [&](double s) {
+          sim_s = s;
+          show_progress();
+        },
+        [&]() { return g_signal != 0; });
+    if (!r.ok) {
+      failure = g_signal != 0 ? std::string("interrupted by signal ") + std::to_string(g_signal) : r.failure;
+      for (auto& c : children) {
+        if (c.name == r.failed) c.exit_code = 1;
+      }
+      std::fprintf(stderr, "%sartms-swarm: %s\n", tty ? "\n" : "", failure.c_str());
+    }
+  } else {
+  // Each run gets its own DDS domain so that concurrent runs never meet.
+  if (std::getenv("ARTMS_DDS_DOMAIN") == nullptr) {
+    setenv("ARTMS_DDS_DOMAIN", std::to_string(1 + getpid() % 200).c_str(), 1);
+  }
+  dds::ensure_loopback_config();
+  // The launcher follows the clock for progress (a reader of the tick topic).
+  dds::Participant participant(dds::domain_from_environment());
+  runtime::TopicSet topics(participant);
+  dds::Reader<artms_msg_ClockTick> ticks(participant, topics.clock_tick, runtime::clock_qos());
+  dds::WaitSet ws(participant);
+  ws.attach(ticks.handle());
   for (const auto& name : services) {
     const bool observer = name.rfind("observer-", 0) == 0;
     const std::string input = observer ? (dir / "uplink" / (name.substr(9) + ".json")).string()
@@ -381,10 +413,6 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
                sc.name.c_str(), children.size(), hms(sc.duration_s).c_str(),
                static_cast<unsigned long long>(sc.seed), std::getenv("ARTMS_DDS_DOMAIN"));
 
-  const bool tty = isatty(STDERR_FILENO) != 0;
-  double sim_s = 0.0;
-  std::string failure;
-  auto last_print = Clock::now() - std::chrono::seconds(10);
   const auto stop_all = [&](int sig) {
     for (auto& c : children) {
       if (c.running) {
@@ -395,7 +423,6 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   };
   bool stopping = false;
   Clock::time_point stop_deadline{};
-  swarm::MemorySampler memory;
   for (;;) {
     // Reap children.
     int status = 0;
@@ -433,25 +460,9 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
       sim_s = std::max(sim_s, astro::seconds_between(sc.epoch, astro::TimeTT{t.t_tt_ns}));
     });
     memory.sample(children, sim_s);
-    const auto now = Clock::now();
-    if (now - last_print > std::chrono::milliseconds(tty ? 200 : 5000)) {
-      last_print = now;
-      const double wall = std::chrono::duration<double>(now - wall0).count();
-      const double rtf = wall > 0 ? sim_s / wall : 0.0;
-      const double frac = sc.duration_s > 0 ? sim_s / sc.duration_s : 1.0;
-      const double eta = rtf > 0 ? (sc.duration_s - sim_s) / rtf : 0.0;
-      if (tty) {
-        const int width = 30, filled = static_cast<int>(frac * width);
-        std::fprintf(stderr, "\r[%s%s] %5.1f%%  sim %s / %s  %.0fx real time  ETA %s   ",
-                     std::string(static_cast<std::size_t>(filled), '#').c_str(),
-                     std::string(static_cast<std::size_t>(width - filled), '.').c_str(), 100 * frac,
-                     hms(sim_s).c_str(), hms(sc.duration_s).c_str(), rtf, hms(eta).c_str());
-      } else {
-        std::fprintf(stderr, "artms-swarm: sim %s / %s (%.0f%%), %.0fx real time, ETA %s\n",
-                     hms(sim_s).c_str(), hms(sc.duration_s).c_str(), 100 * frac, rtf, hms(eta).c_str());
-      }
-    }
+    show_progress();
     ws.wait(0.1);
+  }
   }
   const double wall = std::chrono::duration<double>(Clock::now() - wall0).count();
   if (tty) std::fprintf(stderr, "\n");
@@ -464,7 +475,8 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   const nlohmann::json timing = {{"wall_time_s", wall},
                                  {"sim_time_s", ok ? sc.duration_s : sim_s},
                                  {"real_time_factor", wall > 0 ? (ok ? sc.duration_s : sim_s) / wall : 0.0},
-                                 {"processes", children.size()},
+                                 {"processes", in_process ? std::size_t{1} : children.size()},
+                                 {"runtime", in_process ? "in-process" : "dds"},
                                  {"rss_kb", memory.to_json()}};
   std::ofstream(dir / "timing.json") << timing.dump(2) << "\n";
 
@@ -532,6 +544,9 @@ int main(int argc, char** argv) {
   run->add_option("--rate", rate, "max (lock-step, as fast as possible) or X times real time")->capture_default_str();
   run->add_option("--out", out, "run folder (default runs/<scenario>-<UTC time>)");
   run->add_option("--step-timeout", step_timeout, "seconds a process may take for one step")->capture_default_str();
+  bool in_process = false;
+  run->add_flag("--in-process", in_process,
+                "step the same objects in this one process without DDS (campaigns; same run folder as the DDS run)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -540,7 +555,7 @@ int main(int argc, char** argv) {
   try {
     if (*validate) return cmd_validate(vpath);
     return cmd_run(rpath, duration, orbits, s->count() ? std::optional<std::uint64_t>(seed) : std::nullopt,
-                   rate, out, step_timeout);
+                   rate, out, step_timeout, in_process);
   } catch (const std::exception& e) {
     std::cerr << "artms-swarm: error: " << e.what() << "\n";
     return 2;

@@ -55,28 +55,6 @@ dds::QosProfile isl_relay_writer_qos(const std::string& from, const std::string&
 }
 dds::QosProfile isl_relay_reader_qos(const std::string& me) { return {true, false, 0, 0, {"isl-*-" + me}}; }
 
-std::string isl_link_down_reason(const config::Scenario& s, const std::string& from, const std::string& to,
-                                 astro::TimeTT t, double range_m) {
-  if (!s.crosslink.enabled) return "disabled";
-  for (const auto& o : s.crosslink.outages) {
-    const bool f = o.from == "*" || o.from == from;
-    const bool r = o.to == "*" || o.to == to;
-    if (f && r && !(t < o.window.start) && t < o.window.end) return "outage";
-  }
-  if (range_m > s.crosslink.max_range_m) return "range";
-  return "";
-}
-
-std::vector<std::pair<std::string, std::string>> isl_links(const config::Scenario& s) {
-  std::vector<std::pair<std::string, std::string>> out;
-  for (const auto& a : s.observers) {
-    for (const auto& b : s.observers) {
-      if (a.spacecraft != b.spacecraft) out.emplace_back(a.spacecraft, b.spacecraft);
-    }
-  }
-  return out;
-}
-
 Topology topology(const config::Scenario& s) {
   Topology t;
   t.services = config::services(s);
@@ -96,9 +74,9 @@ Topology topology(const config::Scenario& s) {
       {"isl_broadcast", 1},             // crosslink emulator (partition isl-tx)
       {"isl_outcome", 1},               // recorder
   };
-  for (const auto& [from, to] : isl_links(s)) {
+  for (const auto& [from, to] : config::isl_links(s)) {
     const double range = (s.initial_state_eci(from).r_m - s.initial_state_eci(to).r_m).norm();
-    t.isl_relay_readers[from + "->" + to] = isl_link_down_reason(s, from, to, s.epoch, range).empty() ? 1 : 0;
+    t.isl_relay_readers[from + "->" + to] = config::isl_link_down_reason(s, from, to, s.epoch, range).empty() ? 1 : 0;
   }
   return t;
 }
@@ -168,6 +146,18 @@ void EventLog::emit(std::int64_t t, int severity, const std::string& text) {
   writer_.write(e);
   static const char* kLevel[] = {"info", "warning", "error"};
   std::fprintf(stderr, "[%s] %s: %s\n", source_.c_str(), kLevel[severity], text.c_str());
+}
+
+void EventLog::publish(const std::vector<bus::Event>& events) {
+  for (const auto& e : events) {
+    artms_msg_Event m{};
+    dds::copy_string(m.source, sizeof m.source, e.source);
+    m.t_tt_ns = e.t_tt_ns;
+    m.severity = static_cast<uint8_t>(e.severity);
+    dds::copy_string(m.text, sizeof m.text, e.text);
+    writer_.write(m);
+    std::fprintf(stderr, "[%s] %s: %s\n", e.source.c_str(), bus::to_string(e.severity), e.text.c_str());
+  }
 }
 
 std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const std::string& app_name,

@@ -13,6 +13,8 @@
 #include <vector>
 
 #include "artms.h"
+#include "artms/bus/messages.hpp"
+#include "artms/config/links.hpp"
 #include "artms/config/scenario.hpp"
 #include "artms/dds/dds.hpp"
 
@@ -41,15 +43,7 @@ dds::QosProfile frame_qos(const std::string& observer);
 dds::QosProfile isl_tx_qos();
 dds::QosProfile isl_relay_writer_qos(const std::string& from, const std::string& to, bool up, double lifespan_s);
 dds::QosProfile isl_relay_reader_qos(const std::string& me);
-// The link from -> to at time t, given the distance between the two
-// (truth): "" when up, else why it is down: "disabled" (crosslink.enabled
-// false), "outage" (a scenario outage window holds t; "*" matches any end),
-// "range" (range_m > crosslink.max_range_m). Random loss is per message, not
-// a link state.
-std::string isl_link_down_reason(const config::Scenario& s, const std::string& from, const std::string& to,
-                                 astro::TimeTT t, double range_m);
-// Every directed link between observers, in scenario order (from-major).
-std::vector<std::pair<std::string, std::string>> isl_links(const config::Scenario& s);
+// Link states: config/links.hpp.
 
 // Number of readers each writer of a service must see before the run starts.
 // Derived from the scenario (services(), observers, GNSS flags).
@@ -102,6 +96,8 @@ class EventLog {
   void info(std::int64_t t_tt_ns, const std::string& text) { emit(t_tt_ns, 0, text); }
   void warning(std::int64_t t_tt_ns, const std::string& text) { emit(t_tt_ns, 1, text); }
   void error(std::int64_t t_tt_ns, const std::string& text) { emit(t_tt_ns, 2, text); }
+  // Events a library object produced (bus::EventSink), written and echoed.
+  void publish(const std::vector<bus::Event>& events);
   dds::Writer<artms_msg_Event>& writer() { return writer_; }
 
  private:

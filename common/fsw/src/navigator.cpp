@@ -1,4 +1,4 @@
-#include "navigator.hpp"
+#include "artms/fsw/navigator.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include "artms/astro/roe.hpp"
 #include "artms/sod/apriori.hpp"
 
-namespace artms::observer {
+namespace artms::fsw {
 
 namespace {
 
@@ -61,6 +61,17 @@ Eigen::Vector3d los_eci_of(const Eigen::VectorXd& s) {
 
 }  // namespace
 
+sod::SodOptions sod_options(const config::SodTuning& t) {
+  sod::SodOptions o;
+  o.health.max_steps_without_update = t.max_steps_without_update;
+  o.health.max_large_residuals = t.max_large_residuals;
+  o.bearing_underweighting = t.underweighting;
+  o.adaptive.enabled = t.adaptive_process_noise;
+  o.q_target_a_roe_m2ps *= t.process_noise_scale;
+  o.validate();
+  return o;
+}
+
 double remote_bearing_max_age_s(const config::ObserverUplink& up) {
   return (imp::SamusOptions{}.n_scan + up.tuning.imp.dbscan_frames) * up.swarm_max_cadence_s + up.isl_period_s +
          up.isl_latency_s + 2.0 * up.step_s;
@@ -74,12 +85,7 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   for (const auto& a : up.apriori) target_ids_.push_back(a.target);
   local_.assign(target_ids_.size(), 0);
   remote_.assign(target_ids_.size(), 0);
-  sod_opt_.health.max_steps_without_update = up.tuning.sod.max_steps_without_update;
-  sod_opt_.health.max_large_residuals = up.tuning.sod.max_large_residuals;
-  sod_opt_.bearing_underweighting = up.tuning.sod.underweighting;
-  sod_opt_.adaptive.enabled = up.tuning.sod.adaptive_process_noise;
-  sod_opt_.q_target_a_roe_m2ps *= up.tuning.sod.process_noise_scale;
-  sod_opt_.validate();
+  sod_opt_ = sod_options(up.tuning.sod);
 }
 
 void Navigator::add_remote(const RemoteBroadcast& b) {
@@ -118,7 +124,7 @@ void Navigator::add_remote(const RemoteBroadcast& b) {
     }
     Event e;
     e.t = rb.t;
-    e.kind = 3;
+    e.kind = EventKind::kRemoteBearing;
     e.track = sender;
     e.u_eci = rb.u_eci;
     e.imp_sigma_rad = rb.sigma_rad;
@@ -145,7 +151,7 @@ void Navigator::add_remote(const RemoteBroadcast& b) {
 void Navigator::add_gnss(const sod::GnssMeasurement& m) {
   Event e;
   e.t = m.t;
-  e.kind = 0;
+  e.kind = EventKind::kGnss;
   e.gnss = m;
   queue_.push_back(e);
 }
@@ -155,7 +161,7 @@ double Navigator::bearing_sigma(double imp_sigma_rad) const {
   return s > 0.0 ? s * astro::kArcsecToRad : std::max(imp_sigma_rad, 1.0 * astro::kArcsecToRad);
 }
 
-Navigator::Event Navigator::bearing_event(astro::TimeTT t, int kind, int track, const Eigen::Vector3d& u_eci,
+Navigator::Event Navigator::bearing_event(astro::TimeTT t, EventKind kind, int track, const Eigen::Vector3d& u_eci,
                                           const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
   Event e;
   e.t = t;
@@ -169,7 +175,7 @@ Navigator::Event Navigator::bearing_event(astro::TimeTT t, int kind, int track, 
 
 void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci,
                             const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad, int segment) {
-  Event e = bearing_event(t, 1, track, u_eci, q_cam_from_eci, imp_sigma_rad);
+  Event e = bearing_event(t, EventKind::kTrackBearing, track, u_eci, q_cam_from_eci, imp_sigma_rad);
   e.segment = segment;
   e.direct = direct_assigned(t, u_eci);
   queue_.push_back(e);
@@ -177,7 +183,7 @@ void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u
 
 void Navigator::add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u_eci,
                            const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
-  queue_.push_back(bearing_event(t, 2, target, u_eci, q_cam_from_eci, imp_sigma_rad));
+  queue_.push_back(bearing_event(t, EventKind::kDirectBearing, target, u_eci, q_cam_from_eci, imp_sigma_rad));
   direct_.emplace_back(t, u_eci);
 }
 
@@ -234,20 +240,20 @@ bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& 
 }
 
 void Navigator::process(const Event& e, const imp::Samus& samus) {
-  if (!filter_ || (reinit_pending_ && e.kind == 0)) {
-    if (e.kind == 0) initialise(e.gnss);
+  if (!filter_ || (reinit_pending_ && e.kind == EventKind::kGnss)) {
+    if (e.kind == EventKind::kGnss) initialise(e.gnss);
     else ++late_;
     return;
   }
   auto& f = *filter_;
   if (e.t < f.epoch()) {
-    if (e.kind == 1) ++late_;
+    if (e.kind == EventKind::kTrackBearing) ++late_;
     return;
   }
-  if (e.kind == 0) {
+  if (e.kind == EventKind::kGnss) {
     const auto s = f.update_gnss(e.gnss);
     if (!s.usable && !s.gated) messages_.push_back("SOD: GNSS update not usable: " + s.why);
-  } else if (e.kind == 2) {
+  } else if (e.kind == EventKind::kDirectBearing) {
     if (blended(f, e.track, e.t)) return;
     const auto m = sod::bearing_measurement_from_unit_eci(e.t, e.track, e.u_eci, bearing_sigma(e.imp_sigma_rad),
                                                           e.q_cam_from_eci.toRotationMatrix());
@@ -307,7 +313,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       }
       return;
     }
-    if (e.direct) return;  // already fused as a single detection of this target (kind 2)
+    if (e.direct) return;  // already fused as a single detection of this target (kDirectBearing)
     if (blended(f, as.target, e.t)) return;
     const double sigma = bearing_sigma(e.imp_sigma_rad);
     const Eigen::Matrix3d R_v_from_eci = e.q_cam_from_eci.toRotationMatrix();
@@ -463,7 +469,7 @@ void Navigator::process_until(astro::TimeTT limit, const imp::Samus& samus) {
   });
   std::size_t n = 0;
   while (n < queue_.size() && queue_[n].t <= limit) {
-    if (queue_[n].kind != 3) {
+    if (queue_[n].kind != EventKind::kRemoteBearing) {
       process(queue_[n++], samus);
       continue;
     }
@@ -471,7 +477,7 @@ void Navigator::process_until(astro::TimeTT limit, const imp::Samus& samus) {
     const Event& first = queue_[n];
     const astro::TimeTT t0 = first.t;
     const int sender = first.track;
-    while (n < queue_.size() && queue_[n].kind == 3 && queue_[n].t == t0 && queue_[n].track == sender) {
+    while (n < queue_.size() && queue_[n].kind == EventKind::kRemoteBearing && queue_[n].t == t0 && queue_[n].track == sender) {
       group.push_back(queue_[n++]);
     }
     process_remote(group);
@@ -630,4 +636,4 @@ std::vector<imp::TargetPrediction> Navigator::predictions(astro::TimeTT t, const
   return out;
 }
 
-}  // namespace artms::observer
+}  // namespace artms::fsw

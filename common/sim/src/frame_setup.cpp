@@ -62,3 +62,29 @@ FrameSetup make_frame_setup(const config::Scenario& s, const std::string& observ
 }
 
 }  // namespace artms::render
+
+#include "artms/render/camera_calibration.hpp"
+
+namespace artms::render {
+
+config::CameraCalibration calibration_from(const imaging::CameraModel& cam) {
+  config::CameraCalibration c;
+  c.width_px = cam.width_px;
+  c.height_px = cam.height_px;
+  c.fx_px = cam.fx_px;
+  c.fy_px = cam.fy_px;
+  c.cx_px = cam.cx_px;
+  c.cy_px = cam.cy_px;
+  c.k1 = cam.k1;
+  c.k2 = cam.k2;
+  c.psf_sigma_px = cam.psf_sigma_px;
+  c.gain_e_per_dn = cam.gain_e_per_dn;
+  c.saturation_dn = cam.max_dn();
+  return c;
+}
+
+config::CameraCalibration calibration_of_model(const std::string& model) {
+  return calibration_from(imaging::CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/" + model + ".yaml"));
+}
+
+}  // namespace artms::render

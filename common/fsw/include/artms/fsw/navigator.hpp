@@ -52,7 +52,7 @@
 #include "artms/imp/samus.hpp"
 #include "artms/sod/sod_filter.hpp"
 
-namespace artms::observer {
+namespace artms::fsw {
 
 struct NavigatorOptions {
   double max_lag_s = 600.0;
@@ -79,6 +79,10 @@ struct NavigatorOptions {
   // (5 PSF sigmas of the NST; with the uplinked fx). 0 disables.
   double blend_separation_px = 6.0;
 };
+
+// SOD's options from the uplinked telecommands, as the navigator builds its
+// filter (artms-sod-replay uses the same function).
+sod::SodOptions sod_options(const config::SodTuning& tuning);
 
 // The oldest a remote bearing can be when it arrives (NavigatorOptions::
 // remote_hold_s < 0): the sender's SAMUS decision lag (dbscan_frames + n_scan
@@ -192,25 +196,32 @@ class Navigator {
   [[nodiscard]] bool initialised() const { return filter_.has_value(); }
 
  private:
+  // What a queued event is (processed in (time, kind, track) order).
+  enum class EventKind : std::uint8_t {
+    kGnss = 0,            // a GNSS fix
+    kTrackBearing = 1,    // a bearing of a SAMUS track
+    kDirectBearing = 2,   // a single detection assigned by SOD's prediction
+    kRemoteBearing = 3,   // a bearing received over the ISL
+  };
   struct Event {
     astro::TimeTT t;
-    int kind = 0;  // 0 GNSS, 1 bearing of a SAMUS track, 2 bearing assigned by SOD's prediction, 3 remote bearing
+    EventKind kind = EventKind::kGnss;
     sod::GnssMeasurement gnss;
-    int track = -1;   // kind 1: SAMUS track; kind 2: target index
-    int segment = 1;  // kind 1: the track's segment (TrackedMeasurement::segment)
+    int track = -1;   // kTrackBearing: SAMUS track; kDirectBearing: target index; kRemoteBearing: sender index
+    int segment = 1;  // kTrackBearing: the track's segment (TrackedMeasurement::segment)
     Eigen::Vector3d u_eci = Eigen::Vector3d::Zero();
     Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
     double imp_sigma_rad = 0.0;
-    // kind 3: the sender (index into senders_) and its position estimate at t.
+    // kRemoteBearing: the sender (index into senders_) and its position estimate at t.
     astro::Vec3 sender_r_eci_m = astro::Vec3::Zero();
     astro::Mat3 sender_P_r_m2 = astro::Mat3::Zero();
     bool sender_position_valid = false;
-    // kind 3: which silence of the sender's link it follows (LinkWatch) and
+    // kRemoteBearing: which silence of the sender's link it follows (LinkWatch) and
     // the broadcast's number after it (0: not after a silence).
     int gap = 0;
     int since_gap = 0;
-    std::uint32_t seq = 0;  // kind 3: the sender's broadcast sequence number
-    bool direct = false;    // kind 1: the same candidate was assigned as kind 2 (fused once only)
+    std::uint32_t seq = 0;  // kRemoteBearing: the sender's broadcast sequence number
+    bool direct = false;    // kTrackBearing: the same candidate was assigned as kDirectBearing (fused once only)
   };
   struct LinkWatch {
     std::optional<astro::TimeTT> last;  // the latest broadcast received
@@ -246,7 +257,7 @@ class Navigator {
   std::vector<std::string> senders_;
   std::map<std::string, LinkWatch> links_;
   // Remote bearings already queued, (sender, t, track label): a sender
-  // repeats its recent bearings after a silence of its links (main.cpp).
+  // repeats its recent bearings after a silence of its links (fsw::Observer).
   std::set<std::tuple<std::string, std::int64_t, std::string>> remote_seen_;
   std::size_t remote_repeated_ = 0;
   std::deque<std::pair<astro::TimeTT, Eigen::Vector3d>> direct_;
@@ -254,13 +265,13 @@ class Navigator {
   mutable std::optional<sod::SodFilter> predicted_;
   mutable astro::TimeTT predicted_t_;
   mutable std::uint64_t predicted_version_ = 0;
-  mutable bool predicted_usable_ = false;  // kind-2 assignments of the last hours
+  mutable bool predicted_usable_ = false;  // kDirectBearing assignments of the last hours
   const dynamics::GveRk4Propagator onboard_;
   std::size_t remote_assigned_ = 0, remote_unassigned_ = 0, remote_late_ = 0;
   std::vector<std::uint32_t> remote_;
   std::vector<std::string> messages_;
 
-  static Event bearing_event(astro::TimeTT t, int kind, int track, const Eigen::Vector3d& u_eci,
+  static Event bearing_event(astro::TimeTT t, EventKind kind, int track, const Eigen::Vector3d& u_eci,
                              const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad);
   void process(const Event& e, const imp::Samus& samus);
   // The filter predicted to t (time update from its epoch), shared by the
@@ -292,4 +303,4 @@ class Navigator {
   [[nodiscard]] bool tracked(int k, astro::TimeTT t) const;
 };
 
-}  // namespace artms::observer
+}  // namespace artms::fsw

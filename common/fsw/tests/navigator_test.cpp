@@ -11,10 +11,10 @@
 
 #include <random>
 
-#include "navigator.hpp"
+#include "artms/fsw/navigator.hpp"
 #include "sod_scenario.hpp"
 
-namespace artms::observer {
+namespace artms::fsw {
 namespace {
 
 using sod::testing::j2_forces;
@@ -160,14 +160,14 @@ TEST(NavigatorMode3, Mode1IgnoresRemoteBearings) {
 }
 
 }  // namespace
-}  // namespace artms::observer
+}  // namespace artms::fsw
 
 // Blended spots: single detections of target 0 while target 1 sits on
 // nearly the same line of sight (a close pair 5 and 10 km behind, a*ROE
 // twice target 0's: the same direction to within ~2 px) are left out and
 // counted; with the targets far apart in the image, or without a camera
 // calibration to convert pixels, none is. A-priori = truth, 1 m 1-sigma.
-namespace artms::observer {
+namespace artms::fsw {
 namespace {
 
 // Mode 1 uplink whose a-priori is the truth with a 1 m 1-sigma per a*ROE.
@@ -224,14 +224,14 @@ TEST(NavigatorBlend, BearingsOfTargetsPredictedOnTheSameSpotAreLeftOut) {
 }
 
 }  // namespace
-}  // namespace artms::observer
+}  // namespace artms::fsw
 
 // A SAMUS track joined across a gap may come back on another target (IT:
 // SAMUS's first track follows SV3, loses it in a gap and comes back on SV2):
 // a bound track whose segment changes is associated again, so the other
 // target's bearings never reach the first. Track 7 carries target 0 for 20
 // minutes (segment 1), then target 1 (segment 2). A-priori = truth, 1 m.
-namespace artms::observer {
+namespace artms::fsw {
 namespace {
 
 TEST(NavigatorTracks, ATrackJoinedAcrossAGapIsAssociatedAgain) {
@@ -280,4 +280,4 @@ TEST(NavigatorTracks, ATrackJoinedAcrossAGapIsAssociatedAgain) {
 }
 
 }  // namespace
-}  // namespace artms::observer
+}  // namespace artms::fsw

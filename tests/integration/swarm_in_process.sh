@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Issue 15, acceptance 2: `artms-swarm run --in-process` (the same objects
+# stepped in one process, no DDS) gives a run folder byte-identical to the
+# DDS multi-process run (all files but timing.json and logs/), on shorter
+# spans of the three scenarios the acceptance names: PSE (mode 1, one
+# observer), IT multi (mode 3, three observers, ISL) and the four-observer
+# soak scenario.
+set -euo pipefail
+BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
+rm -rf "$WORK"; mkdir -p "$WORK"
+run() {  # name scenario span-args... ; runs DDS then in-process
+  local name=$1 scenario=$2; shift 2
+  for mode in dds inproc; do
+    local extra=(); [ "$mode" = inproc ] && extra=(--in-process)
+    "$BIN/artms-swarm" run "$SRC/config/swarms/$scenario" "$@" --seed 7 "${extra[@]}" --out "$WORK/$name-$mode" \
+        > "$WORK/$name-$mode.out" 2>&1 \
+      || { echo "$name $mode failed:"; tail -n 30 "$WORK/$name-$mode.out"; tail -n 20 "$WORK/$name-$mode"/logs/*.log; exit 1; }
+  done
+  echo -n "$name: "
+  /usr/bin/python3 "$SRC/tests/integration/compare_runs.py" "$WORK/$name-dds" "$WORK/$name-inproc"
+  /usr/bin/python3 - "$WORK/$name-dds/timing.json" "$WORK/$name-inproc/timing.json" <<'PY'
+import json, sys
+d, i = (json.load(open(p)) for p in sys.argv[1:])
+assert i["runtime"] == "in-process" and d["runtime"] == "dds", (d, i)
+print(f"  wall time: DDS {d['wall_time_s']:.1f} s, in-process {i['wall_time_s']:.1f} s")
+PY
+}
+run pse starling_pse.yaml --orbits 1
+run it_multi starling_it_multi.yaml --duration 2h
+run soak soak_four_observers.yaml --duration 1h
+echo "swarm in-process: ok"
