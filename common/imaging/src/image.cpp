@@ -118,7 +118,12 @@ class Rng {
   std::int64_t poisson(double lam) {
     if (!(lam > 0.0)) return 0;
     if (lam < 10.0) {
-      double p = std::exp(-lam);
+      // exp(-lam) of the previous mean is reused (neighbouring pixels share it).
+      if (lam != small_lam_) {
+        small_lam_ = lam;
+        exp_minus_lam_ = std::exp(-lam);
+      }
+      double p = exp_minus_lam_;
       double cdf = p;
       const double u = uniform();
       std::int64_t k = 0;
@@ -129,12 +134,16 @@ class Rng {
       }
       return k;
     }
-    const double slam = std::sqrt(lam);
-    const double loglam = std::log(lam);
-    const double b = 0.931 + 2.53 * slam;
-    const double a = -0.059 + 0.02483 * b;
-    const double inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
-    const double v_r = 0.9277 - 3.6224 / (b - 2.0);
+    // The constants of the previous mean are reused (same values, bit for bit).
+    if (lam != ptrs_.lam) {
+      ptrs_.lam = lam;
+      ptrs_.loglam = std::log(lam);
+      ptrs_.b = 0.931 + 2.53 * std::sqrt(lam);
+      ptrs_.a = -0.059 + 0.02483 * ptrs_.b;
+      ptrs_.inv_alpha = 1.1239 + 1.1328 / (ptrs_.b - 3.4);
+      ptrs_.v_r = 0.9277 - 3.6224 / (ptrs_.b - 2.0);
+    }
+    const double loglam = ptrs_.loglam, b = ptrs_.b, a = ptrs_.a, inv_alpha = ptrs_.inv_alpha, v_r = ptrs_.v_r;
     for (;;) {
       const double u = uniform() - 0.5;
       const double v = uniform();
@@ -154,6 +163,10 @@ class Rng {
   Xoshiro256ss eng_;
   double spare_ = 0.0;
   bool has_spare_ = false;
+  double small_lam_ = -1.0, exp_minus_lam_ = 0.0;
+  struct {
+    double lam = -1.0, loglam = 0.0, b = 0.0, a = 0.0, inv_alpha = 0.0, v_r = 0.0;
+  } ptrs_;
 };
 
 // The conversion chain electrons -> DN for one set of options.

@@ -135,6 +135,34 @@ double interpolated_quantile(std::vector<std::uint16_t>& v, double p) {
   return static_cast<double>(q) - 0.5 + std::clamp(frac, 0.0, 1.0);
 }
 
+// The same quantiles of one sample set from its histogram (one pass over
+// the samples, a scan of the bins up to the larger quantile): the k-th
+// smallest value, and the counts below and at it, are those
+// interpolated_quantile finds, so the results are identical. Falls back to
+// it when the values span too many bins.
+std::pair<double, double> interpolated_quantiles(std::vector<std::uint16_t>& v, double p1, double p2,
+                                                 std::vector<std::uint32_t>& hist) {
+  const auto [lo_it, hi_it] = std::minmax_element(v.begin(), v.end());
+  const std::uint16_t lo = *lo_it, hi = *hi_it;
+  if (static_cast<int>(hi) - static_cast<int>(lo) > 8192) {
+    const double a = interpolated_quantile(v, p1);
+    return {a, interpolated_quantile(v, p2)};
+  }
+  hist.assign(static_cast<std::size_t>(hi - lo) + 1, 0U);
+  for (const std::uint16_t x : v) ++hist[static_cast<std::size_t>(x - lo)];
+  const auto n = v.size();
+  const auto quantile = [&](double p) {
+    const double t = p * static_cast<double>(n);
+    auto k = static_cast<std::size_t>(t);
+    if (k >= n) k = n - 1;
+    std::size_t below = 0, b = 0;
+    while (below + hist[b] <= k) below += hist[b++];
+    const double frac = (t - static_cast<double>(below)) / static_cast<double>(hist[b]);
+    return static_cast<double>(lo + b) - 0.5 + std::clamp(frac, 0.0, 1.0);
+  };
+  return {quantile(p1), quantile(p2)};
+}
+
 // Cell boundaries: n cells over [0, size), boundaries k * size / n.
 std::vector<int> cell_edges(int size, int n) {
   std::vector<int> e(static_cast<std::size_t>(n) + 1);
@@ -205,6 +233,7 @@ Grid background_grid(std::span<const std::uint16_t> px, int w, int h, int cell) 
   g.bg.resize(static_cast<std::size_t>(g.ncx * g.ncy));
   g.noise.resize(g.bg.size());
   std::vector<std::uint16_t> samples;
+  std::vector<std::uint32_t> hist;
   for (int j = 0; j < g.ncy; ++j) {
     for (int i = 0; i < g.ncx; ++i) {
       samples.clear();
@@ -217,8 +246,7 @@ Grid background_grid(std::span<const std::uint16_t> px, int w, int h, int cell) 
             px.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(w);
         for (int x = x0; x < x1; x += stride) samples.push_back(row[x]);
       }
-      const double med = interpolated_quantile(samples, 0.5);
-      const double q16 = interpolated_quantile(samples, kQ16);
+      const auto [med, q16] = interpolated_quantiles(samples, 0.5, kQ16, hist);
       const auto k = static_cast<std::size_t>(j * g.ncx + i);
       g.bg[k] = med;
       g.noise[k] = std::max(kMinNoiseDn, med - q16);
