@@ -195,11 +195,11 @@ void BM_ImpFrameFull(benchmark::State& state) {
   for (auto _ : state) {
     const auto& f = fs[i % fs.size()];
     const double t_s = 60.0 * static_cast<double>(i);
-    const imp::FrameSummary fr = processor.process(f.pixels, t_s);
+    const imp::FrameSummary fr = processor.process(f.pixels, astro::TimeTT{}.plus_seconds(t_s));
     if (fr.attitude_usable) {
       imp::TrackerInput in;
       in.frame = static_cast<std::int64_t>(i);
-      in.t_s = t_s;
+      in.t = astro::TimeTT{}.plus_seconds(t_s);
       in.observer_eci = observer_at(t_s);
       in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
       in.candidates = fr.candidates;
@@ -252,7 +252,7 @@ const SamusSequence& samus_sequence() {
       const Eigen::Matrix3d M = astro::R_rtn_from_eci(x).transpose();  // columns: R, T, N in ECI
       imp::TrackerInput in;
       in.frame = k;
-      in.t_s = t;
+      in.t = astro::TimeTT{}.plus_seconds(t);
       in.observer_eci = x;
       in.boresight_eci = -M.col(1);
       for (const auto& tg : targets) {

@@ -17,6 +17,8 @@ PACKAGES=(
   python3 python3-numpy python3-scipy python3-poliastro python3-sklearn python3-skyfield
   # plots for artms-report helpers and docs
   python3-matplotlib
+  # campaigns on a cluster engine (tools/artms_swarm/campaign.py --dask-*)
+  python3-distributed
   # network namespaces for multi-host tests
   iproute2 procps
 )

@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "artms/fsw/observer.hpp"
+#include "artms/io/paths.hpp"
 #include "artms/runtime/runtime.hpp"
 #include "artms/runtime/wire.hpp"
 
@@ -17,7 +18,7 @@ int run(const runtime::ServiceOptions& opt) {
   // The observer knows only what the ground uplinked: never the scenario
   // (which holds the true orbits).
   if (opt.uplink_path.empty()) throw std::invalid_argument("artms-observer needs --uplink FILE");
-  fsw::Observer observer(fsw::load_observer_setup(opt.uplink_path, ARTMS_DATA_DIR), opt.name);
+  fsw::Observer observer(fsw::load_observer_setup(opt.uplink_path, io::data_dir()), opt.name);
   if (opt.name != "observer-" + observer.id()) {
     throw std::invalid_argument("service name " + opt.name + " does not match the uplink's observer " + observer.id());
   }

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <thread>
 
+#include "artms/io/paths.hpp"
 #include "artms/runtime/runtime.hpp"
 #include "artms/runtime/wire.hpp"
 #include "artms/sim/services.hpp"
@@ -17,7 +18,7 @@ using namespace artms;
 int run(const runtime::ServiceOptions& opt) {
   const config::Scenario sc = runtime::load_for_service(opt);
   const runtime::Topology topo = runtime::topology(sc);
-  sim::Truth world(sc, std::make_shared<const dynamics::ForceModel>(dynamics::ForceModel::load(sc.force_model, ARTMS_DATA_DIR)),
+  sim::Truth world(sc, std::make_shared<const dynamics::ForceModel>(dynamics::ForceModel::load(sc.force_model, io::data_dir())),
                    opt.name);
   dds::Participant participant(dds::domain_from_environment());
   runtime::TopicSet topics(participant);

@@ -4,7 +4,10 @@ the swarm_isl_* integration tests. Prints per link sent/delivered/dropped.
 
 usage: isl_check.py RUN_DIR [--outage START_S END_S] [--loss P]
 """
-import csv, json, math, sys
+import math, os, sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "..", "tools", "python"))
+from artms_tools.runfolder import failed_processes, read_csv, read_summary  # noqa: E402
 
 run = sys.argv[1]
 args = sys.argv[2:]
@@ -17,11 +20,11 @@ while args:
     elif a == "--loss":
         loss_p = float(args.pop(0))
 
-s = json.load(open(f"{run}/summary.json"))
-bad = [p for p in s["processes"] if p["exit_code"] != 0]
+s = read_summary(run)
+bad = failed_processes(s)
 assert not bad, f"processes with non-zero exit: {bad}"
 isl = s["isl"]
-rows = list(csv.DictReader(open(f"{run}/isl.csv")))
+rows = read_csv(f"{run}/isl.csv")
 assert rows, "isl.csv is empty"
 t0 = min(int(r["t_sent_tt_ns"]) for r in rows)  # first broadcast = epoch (step 0)
 links = sorted(isl["per_link"])
@@ -57,8 +60,8 @@ print(f"total: sent {isl['sent']} delivered {isl['delivered']} dropped {isl['dro
 for key in links:
     frm, to = key.split("->")
 nav_received = {}
-for obs in {k.split("->")[1] for k in links}:
-    nav = list(csv.DictReader(open(f"{run}/nav/{obs}.csv")))
+for obs in sorted({k.split("->")[1] for k in links}):
+    nav = read_csv(f"{run}/nav/{obs}.csv")
     last = nav[-1]
     t_last = int(last["t_tt_ns"])
     expect = sum(1 for r in rows if r["receiver"] == obs and r["status"] == "delivered" and int(r["t_tt_ns"]) < t_last)
@@ -74,7 +77,7 @@ for obs in {k.split("->")[1] for k in links}:
 
 if outage:
     a, b = outage
-    lk = list(csv.DictReader(open(f"{run}/links.csv")))
+    lk = read_csv(f"{run}/links.csv")
     for key in links:
         frm, to = key.split("->")
         L = isl["per_link"][key]

@@ -10,36 +10,26 @@ rm -rf "$WORK"; mkdir -p "$WORK"
 "$BIN/artms-oem-check" "$WORK/run/truth.oem" > "$WORK/check.txt"
 cat "$WORK/check.txt"
 # The first SV4 sample is the initial state; propagate it with the same forces.
-RV=$(/usr/bin/python3 - "$WORK/run/truth.oem" <<'PY'
+RV=$(PYTHONPATH="$SRC/tools/python" /usr/bin/python3 - "$WORK/run/truth.oem" <<'PY'
 import sys
-seg = None
-for line in open(sys.argv[1]):
-    line = line.strip()
-    if line.startswith("OBJECT_NAME"):
-        seg = line.split("=")[1].strip()
-    elif seg == "SV4" and line[:4].isdigit():
-        v = [float(x) * 1e3 for x in line.split()[1:7]]
-        print(",".join(repr(x) for x in v)); break
+from artms_tools.oem import read_oem
+sv4 = read_oem(sys.argv[1]).segment("SV4")
+print(",".join(repr(x) for x in sv4.r_m[0] + sv4.v_mps[0]))
 PY
 )
 "$BIN/artms-propagate" --epoch 2024-05-08T00:00:00Z --rv "$RV" --duration 1h --step 60s \
   --force grav10,drag,sun,moon --out "$WORK/sv4.csv" 2> /dev/null
-/usr/bin/python3 - "$WORK/run/truth.oem" "$WORK/sv4.csv" <<'PY'
+PYTHONPATH="$SRC/tools/python" /usr/bin/python3 - "$WORK/run/truth.oem" "$WORK/sv4.csv" <<'PY'
 import sys, math
-oem, seg = {}, None
-for line in open(sys.argv[1]):
-    line = line.strip()
-    if line.startswith("OBJECT_NAME"):
-        seg = line.split("=")[1].strip()
-    elif seg == "SV4" and line[:4].isdigit():
-        f = line.split()
-        oem[f[0][:19]] = [float(x) * 1e3 for x in f[1:4]]
+from artms_tools.oem import read_oem
+from artms_tools.runfolder import read_csv
+sv4 = read_oem(sys.argv[1]).segment("SV4")
+oem = dict(zip(sv4.t_tt_ns, sv4.r_m))
 worst, n = 0.0, 0
-for row in list(open(sys.argv[2]))[1:]:
-    c = row.strip().split(",")
-    key = c[0][:19]
-    if key in oem:
-        worst = max(worst, math.dist(oem[key], [float(x) for x in c[2:5]])); n += 1
+for r in read_csv(sys.argv[2], required=("t_tt_ns", "x_m", "y_m", "z_m")):
+    t = r.int("t_tt_ns")
+    if t in oem:
+        worst = max(worst, math.dist(oem[t], [r.float(k) for k in ("x_m", "y_m", "z_m")])); n += 1
 assert n >= 60, f"only {n} common epochs"
 print(f"truth.oem vs artms-propagate, SV4, {n} epochs: max |dr| = {worst*1e3:.4f} mm")
 assert worst < 1e-3, "differ by more than 1 mm"

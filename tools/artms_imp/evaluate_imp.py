@@ -12,8 +12,12 @@ that ended in a track) and identity across eclipses (consecutive visibility
 segments of a target, split by gaps longer than 15 minutes, carried by the same
 track id). Uses only Debian's numpy.
 """
-import csv, glob, json, math, os, sys
+import glob, json, math, os, sys
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "python"))
+from artms_tools.codes import FrameStatus, is_samus_track  # noqa: E402
+from artms_tools.runfolder import read_csv  # noqa: E402
 
 
 def rot(q):  # [w, x, y, z], scalar first, rotates ECI components into camera components
@@ -25,10 +29,10 @@ def rot(q):  # [w, x, y, z], scalar first, rotates ECI components into camera co
 
 def main():
     frames_dir, out_dir = sys.argv[1], sys.argv[2]
-    att = {int(r["frame"]): r for r in csv.DictReader(open(os.path.join(out_dir, "attitude.csv")))}
+    att = {r.int("frame"): r for r in read_csv(os.path.join(out_dir, "attitude.csv"), required=("frame", "status"))}
     meas = {}
-    for r in csv.DictReader(open(os.path.join(out_dir, "measurements.csv"))):
-        meas.setdefault(int(r["frame"]), []).append(r)
+    for r in read_csv(os.path.join(out_dir, "measurements.csv"), required=("frame", "track_id", "x_px", "y_px")):
+        meas.setdefault(r.int("frame"), []).append(r)
     eligible = solved = wrong = 0
     labelled = []  # (t_ns, truth target, track id) of candidates matching a target
     cross, roll, bearing = [], [], []
@@ -47,14 +51,14 @@ def main():
                     label = t["id"]
             if label is not None:
                 labelled.append((int(m["t_tt_ns"]), label, int(m["track_id"])))
-            if int(m["track_id"]) >= 0:
+            if is_samus_track(m["track_id"]):
                 tracked_rows.append((int(m["track_id"]), label))
         bright = [s for s in j["stars"] if s["vmag"] <= 6.5]
         if len(bright) < 4:
             continue
         eligible += 1
         a = att.get(k)
-        if not a or a["status"] != "ok":
+        if not a or FrameStatus.parse(a["status"]) != FrameStatus.OK:
             continue
         solved += 1
         Rt = rot(j["q_cam_from_eci"])
@@ -94,7 +98,7 @@ def main():
         votes.setdefault(tid, Counter())[label] += 1
     track_target = {tid: c.most_common(1)[0][0] for tid, c in votes.items()}
     correct = sum(1 for tid, label in tracked_rows if label is not None and label == track_target[tid])
-    recall_hits = sum(1 for _, _, tid in labelled if tid >= 0)
+    recall_hits = sum(1 for _, _, tid in labelled if is_samus_track(tid))
     # Identity across eclipses: per target, segments of detections split by gaps > 15 min.
     joins = kept = 0
     by_target = {}
@@ -108,7 +112,7 @@ def main():
                 cur = []
             cur.append(b)
         segs.append(cur)
-        ids = [Counter(tid for _, tid in sg if tid >= 0).most_common(1) for sg in segs]
+        ids = [Counter(tid for _, tid in sg if is_samus_track(tid)).most_common(1) for sg in segs]
         for a, b in zip(ids, ids[1:]):
             if not a or not b:
                 continue  # a segment that was never tracked (counted in recall)

@@ -30,6 +30,7 @@
 #include "artms/fsw/observer.hpp"
 #include "artms/render/camera_calibration.hpp"
 #include "artms/imp/star_id.hpp"
+#include "artms/io/paths.hpp"
 #include "orbit_table.hpp"
 
 namespace {
@@ -90,7 +91,7 @@ int run(int argc, char** argv) {
         t_cat = astro::TimeTT{nlohmann::json::parse(std::ifstream(side)).at("t_tt_ns").get<std::int64_t>()};
       }
     }
-    const auto bsc = imaging::StarCatalog::load_bsc5(std::string(ARTMS_DATA_DIR) + "/stars/bsc5.dat", vmag_limit);
+    const auto bsc = imaging::StarCatalog::load_bsc5(io::data_dir() + "/stars/bsc5.dat", vmag_limit);
     std::vector<imp::CatalogStar> stars;
     for (const auto& s : bsc.stars()) stars.push_back({s.catalog_id, s.unit_eci_at(t_cat)});
     const auto catalog = imp::StarIdCatalog::build(std::move(stars), 2.0 * K.half_diagonal_fov_rad());
@@ -155,8 +156,7 @@ int run(int argc, char** argv) {
         att << line;
         continue;
       }
-      const double t_s = static_cast<double>(t_ns) * 1e-9;
-      const imp::FrameSummary fr = processor.process(img.pixels, t_s);
+      const imp::FrameSummary fr = processor.process(img.pixels, astro::TimeTT{t_ns});
       hot += fr.hot_pixels_removed;
       uncatalogued += fr.uncatalogued_stars_removed;
       if (!fr.attitude_usable) {
@@ -183,7 +183,7 @@ int run(int argc, char** argv) {
         }
         imp::TrackerInput in;
         in.frame = k;
-        in.t_s = t_s;
+        in.t = astro::TimeTT{t_ns};
         in.observer_eci = *x;
         in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
         in.candidates = fr.candidates;

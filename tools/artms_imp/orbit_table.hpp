@@ -15,45 +15,29 @@
 #include <vector>
 
 #include "artms/astro/frames.hpp"
+#include "artms/io/csv.hpp"
 
 namespace artms {
 
 class OrbitTable {
  public:
+  // Rows with an empty or non-finite state (e.g. nav health 2, no
+  // solution) are skipped; a malformed file is an error naming its line.
   static OrbitTable load(const std::string& path) {
-    std::ifstream f(path);
-    if (!f) throw std::runtime_error(path + ": cannot open");
-    std::string line;
-    std::getline(f, line);
-    std::vector<std::string> cols = split(line);
-    const char* names[] = {"t_tt_ns", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps"};
-    int idx[7];
-    for (int k = 0; k < 7; ++k) {
-      idx[k] = -1;
-      for (std::size_t c = 0; c < cols.size(); ++c) {
-        if (cols[c] == names[k]) idx[k] = static_cast<int>(c);
-      }
-      if (idx[k] < 0) throw std::runtime_error(path + ":1: missing column " + names[k]);
-    }
+    const auto tab = io::CsvTable::read(path);
+    const char* names[] = {"x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps"};
+    for (const char* n : {"t_tt_ns", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps"}) (void)tab.column(n);
     OrbitTable t;
-    int lineno = 1;
-    while (std::getline(f, line)) {
-      ++lineno;
-      const auto v = split(line);
-      try {
-        const std::int64_t ns = std::stoll(v.at(static_cast<std::size_t>(idx[0])));
-        astro::StateVector x;
-        for (int k = 0; k < 3; ++k) {
-          const std::string& a = v.at(static_cast<std::size_t>(idx[1 + k]));
-          const std::string& b = v.at(static_cast<std::size_t>(idx[4 + k]));
-          if (a.empty() || b.empty()) throw std::invalid_argument("empty");
-          x.r_m[k] = std::stod(a);
-          x.v_mps[k] = std::stod(b);
-        }
-        if (x.r_m.allFinite() && x.v_mps.allFinite() && x.r_m.norm() > 6.3e6) t.samples_[ns] = x;
-      } catch (const std::exception&) {
-        // rows without a solution (e.g. nav health 2) are skipped
+    for (std::size_t r = 0; r < tab.size(); ++r) {
+      bool empty = false;
+      for (const char* n : names) empty = empty || tab.text(r, n).empty();
+      if (empty) continue;
+      astro::StateVector x;
+      for (int k = 0; k < 3; ++k) {
+        x.r_m[k] = tab.number(r, names[k]);
+        x.v_mps[k] = tab.number(r, names[3 + k]);
       }
+      if (x.r_m.allFinite() && x.v_mps.allFinite() && x.r_m.norm() > 6.3e6) t.samples_[tab.integer(r, "t_tt_ns")] = x;
     }
     if (t.samples_.size() < 2) throw std::runtime_error(path + ": fewer than two usable orbit rows");
     return t;
@@ -92,14 +76,6 @@ class OrbitTable {
 
  private:
   std::map<std::int64_t, astro::StateVector> samples_;
-  static std::vector<std::string> split(const std::string& line) {
-    std::vector<std::string> out;
-    std::stringstream ss(line);
-    std::string c;
-    while (std::getline(ss, c, ',')) out.push_back(c);
-    if (!line.empty() && line.back() == ',') out.emplace_back();
-    return out;
-  }
 };
 
 }  // namespace artms

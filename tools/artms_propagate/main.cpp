@@ -14,6 +14,7 @@
 #include "artms/astro/elements.hpp"
 #include "artms/io/duration.hpp"
 #include "artms/io/oem.hpp"
+#include "artms/io/paths.hpp"
 #include "artms/truth_propagator/cowell.hpp"
 
 namespace {
@@ -52,8 +53,13 @@ int run(int argc, char** argv) {
       "artms-propagate"};
   std::string epoch, rv, oe, duration = "1d", step = "60s", force = "grav10,drag,sun,moon";
   std::string oem_path, out_path, name = "OBJECT";
-  const char* env_data = std::getenv("ARTMS_DATA_DIR");
-  std::string data_dir = env_data ? env_data : ARTMS_DEFAULT_DATA_DIR;
+  // Shown as --data-dir's default when found; looked up again (with the
+  // places tried in the error) after parsing when not.
+  std::string data_dir;
+  try {
+    data_dir = io::data_dir();
+  } catch (const std::runtime_error&) {
+  }
   dynamics::SpacecraftProperties sc;
   app.add_option("--epoch", epoch, "initial epoch, UTC (e.g. 2024-05-08T00:00:00Z)")->required();
   auto* rv_opt = app.add_option("--rv", rv, "initial state x,y,z,vx,vy,vz (m, m/s, ECI J2000)");
@@ -99,6 +105,7 @@ int run(int argc, char** argv) {
       x0 = astro::cartesian_from_kepler(k);
     }
     sc.validate();
+    if (data_dir.empty()) data_dir = io::data_dir();  // throws naming every place tried
     const auto options = dynamics::ForceModelOptions::parse(force);
     const auto forces = dynamics::ForceModel::load(options, data_dir);
     truth::CowellPropagator prop(forces, sc, t0, x0);

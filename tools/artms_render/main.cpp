@@ -16,6 +16,7 @@
 #include "artms/config/scenario.hpp"
 #include "artms/imaging/renderer.hpp"
 #include "artms/io/duration.hpp"
+#include "artms/io/paths.hpp"
 #include "artms/render/frame_setup.hpp"
 #include "artms/truth_propagator/cowell.hpp"
 
@@ -63,7 +64,7 @@ int run(int argc, char** argv) {
     render::FrameSetup setup = render::make_frame_setup(sc, observer, camera_path, flight_like, noise_free);
     fs::create_directories(out);
     // Truth for every spacecraft (the renderer is a truth-side tool).
-    const auto forces = dynamics::ForceModel::load(sc.force_model, ARTMS_DATA_DIR);
+    const auto forces = dynamics::ForceModel::load(sc.force_model, io::data_dir());
     std::vector<std::pair<std::string, truth::CowellPropagator>> props;
     for (const auto& s : sc.spacecraft) {
       std::vector<dynamics::ImpulsiveManeuver> man;

@@ -13,14 +13,35 @@ summarise, 2 when RUN_DIR is missing or unreadable. Uses only Debian's
 python3-numpy and python3-matplotlib (Agg backend).
 """
 import argparse
-import csv
 import datetime
 import json
 import math
 import os
 import sys
 
-import matplotlib
+
+def _artms_tools_dir():
+    """tools/python: beside this script in the source tree; for the copy in <build>/bin, an
+    ARTMS_PYTHON_DIR override, <build>/python or the source tree recorded in <build>/CMakeCache.txt."""
+    here = os.path.dirname(os.path.realpath(__file__))
+    dirs = [os.environ.get("ARTMS_PYTHON_DIR", ""), os.path.join(here, "..", "python"),
+            os.path.join(here, "..", "share", "artms", "python")]
+    cache = os.path.join(here, "..", "CMakeCache.txt")
+    if os.path.isfile(cache):
+        with open(cache) as f:
+            dirs += [os.path.join(line.split("=", 1)[1].strip(), "tools", "python") for line in f
+                     if line.startswith("CMAKE_HOME_DIRECTORY:INTERNAL=")]
+    return next((d for d in dirs if d and os.path.isfile(os.path.join(d, "artms_tools", "__init__.py"))), None)
+
+
+_TOOLS = _artms_tools_dir()
+if _TOOLS is None:
+    sys.exit("artms-report: cannot find the artms_tools package (tools/python); set ARTMS_PYTHON_DIR to that folder")
+sys.path.insert(0, os.path.abspath(_TOOLS))
+from artms_tools.codes import NavHealth  # noqa: E402
+from artms_tools.runfolder import RunFolderError, read_csv as read_run_csv  # noqa: E402
+
+import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -32,7 +53,8 @@ DEFAULT_PERIOD_S = 5700.0
 ROE = ["da", "dlambda", "dex", "dey", "dix", "diy"]
 ROE_LABEL = {"da": r"$a\delta a$", "dlambda": r"$a\delta\lambda$", "dex": r"$a\delta e_x$",
              "dey": r"$a\delta e_y$", "dix": r"$a\delta i_x$", "diy": r"$a\delta i_y$"}
-HEALTH_COLOUR = {1: ("#f2d98c", "re-initialising"), 2: ("#f4a6a6", "no solution")}
+HEALTH_COLOUR = {NavHealth.REINITIALISING: ("#f2d98c", NavHealth.REINITIALISING.label),
+                 NavHealth.NO_SOLUTION: ("#f4a6a6", NavHealth.NO_SOLUTION.label)}
 
 # StarFOX flight results (starfox-paper.tex, "Relative Navigation" sections and
 # tab:result). Single observer: SV4 on 05/16/24; multi-observer: SV4 on 02/05/24.
@@ -91,10 +113,12 @@ def read_csv(path, what):
         print(f"missing: {path} ({what})")
         return None
     try:
-        with open(path, newline="") as f:
-            rows = [r for r in csv.DictReader(f)]
-    except (OSError, csv.Error, UnicodeDecodeError) as e:
+        rows = read_run_csv(path)
+    except (OSError, UnicodeDecodeError) as e:
         print(f"unreadable: {path}: {e} ({what})")
+        return None
+    except RunFolderError as e:  # a malformed row: the whole file is refused, never a row dropped
+        print(f"unreadable: {e} ({what})")
         return None
     if not rows:
         print(f"empty: {path} ({what})")

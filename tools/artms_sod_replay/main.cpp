@@ -14,6 +14,9 @@
 #include <CLI/CLI.hpp>
 
 #include "artms/fsw/navigator.hpp"
+#include "artms/io/csv.hpp"
+#include "artms/io/oem.hpp"
+#include "artms/io/paths.hpp"
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
@@ -42,56 +45,12 @@ using Eigen::MatrixXd;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
-// A CSV file as a header-indexed table.
-struct Table {
-  std::map<std::string, std::size_t> column;
-  std::vector<std::vector<std::string>> rows;
-  [[nodiscard]] const std::string& at(const std::vector<std::string>& row, const std::string& name) const {
-    return row.at(column.at(name));
-  }
-};
-
-Table read_table(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open " + path);
-  Table t;
-  std::string line;
-  bool header = true;
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    std::string c;
-    while (std::getline(ss, c, ',')) f.push_back(c);
-    if (header) {
-      for (std::size_t i = 0; i < f.size(); ++i) t.column[f[i]] = i;
-      header = false;
-    } else if (f.size() == t.column.size()) {
-      t.rows.push_back(std::move(f));
-    }
-  }
-  return t;
-}
-
-// truth.oem: ECI states per object at each sample (TT ns).
-std::map<std::int64_t, std::map<std::string, astro::StateVector>> read_oem(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open " + path);
+// truth.oem: ECI states per object at each sample (TT ns), with the
+// project's one OEM reader.
+std::map<std::int64_t, std::map<std::string, astro::StateVector>> read_truth(const std::string& path) {
   std::map<std::int64_t, std::map<std::string, astro::StateVector>> out;
-  std::string line, object;
-  while (std::getline(in, line)) {
-    if (line.rfind("OBJECT_NAME", 0) == 0) {
-      object = line.substr(line.find('=') + 1);
-      object.erase(0, object.find_first_not_of(' '));
-    } else if (line.size() > 20 && line[0] == '2' && line[4] == '-') {
-      std::stringstream ss(line);
-      std::string t;
-      double v[6];
-      ss >> t >> v[0] >> v[1] >> v[2] >> v[3] >> v[4] >> v[5];
-      astro::StateVector x;
-      x.r_m << v[0] * 1e3, v[1] * 1e3, v[2] * 1e3;
-      x.v_mps << v[3] * 1e3, v[4] * 1e3, v[5] * 1e3;
-      out[astro::tt_from_utc_string(t + "Z").ns_since_j2000][object] = x;
-    }
+  for (const auto& seg : io::read_oem_file(path).segments) {
+    for (const auto& smp : seg.samples) out[smp.t.ns_since_j2000][seg.object_name] = smp.x_eci;
   }
   return out;
 }
@@ -137,20 +96,20 @@ int run(int argc, char** argv) {
   const std::string up_path = run_dir + "/uplink/" + observer + ".json";
   const config::ObserverUplink up = config::read_uplink(up_path);
   if (up.apriori.empty()) throw std::runtime_error(up_path + ": no ground a-priori (not a mode 1 or 3 observer)");
-  const auto forces = dynamics::ForceModel::load(up.force_model, ARTMS_DATA_DIR);
+  const auto forces = dynamics::ForceModel::load(up.force_model, io::data_dir());
   std::vector<std::string> ids;
   for (const auto& a : up.apriori) ids.push_back(a.target);
   const int n = static_cast<int>(ids.size());
-  const auto truth = read_oem(run_dir + "/truth.oem");
+  const auto truth = read_truth(run_dir + "/truth.oem");
 
   // True pixels per frame time.
   std::map<std::int64_t, std::map<std::string, Eigen::Vector2d>> true_px;
   {
-    const Table frames = read_table(run_dir + "/frames.csv");
-    for (const auto& r : frames.rows) {
-      if (frames.at(r, "observer") != observer || frames.at(r, "x_px").empty()) continue;
-      true_px[std::stoll(frames.at(r, "t_tt_ns"))][frames.at(r, "target")] =
-          Eigen::Vector2d(std::stod(frames.at(r, "x_px")), std::stod(frames.at(r, "y_px")));
+    const auto frames = io::CsvTable::read(run_dir + "/frames.csv");
+    for (std::size_t r = 0; r < frames.size(); ++r) {
+      if (frames.text(r, "observer") != observer || frames.text(r, "x_px").empty()) continue;
+      true_px[frames.integer(r, "t_tt_ns")][frames.text(r, "target")] =
+          Eigen::Vector2d(frames.number(r, "x_px"), frames.number(r, "y_px"));
     }
   }
   std::mt19937_64 rng(seed);
@@ -158,10 +117,10 @@ int run(int argc, char** argv) {
   std::map<std::int64_t, std::vector<Bearing>> bearings;
   int unassigned = 0, blended = 0;
   {
-    const Table m = read_table(run_dir + "/imp/" + observer + "/measurements.csv");
-    for (const auto& r : m.rows) {
-      const std::int64_t t = std::stoll(m.at(r, "t_tt_ns"));
-      const Eigen::Vector2d p(std::stod(m.at(r, "x_px")), std::stod(m.at(r, "y_px")));
+    const auto m = io::CsvTable::read(run_dir + "/imp/" + observer + "/measurements.csv");
+    for (std::size_t r = 0; r < m.size(); ++r) {
+      const std::int64_t t = m.integer(r, "t_tt_ns");
+      const Eigen::Vector2d p(m.number(r, "x_px"), m.number(r, "y_px"));
       int best = -1;
       double best_d = 3.0;
       for (int k = 0; k < n; ++k) {
@@ -185,8 +144,8 @@ int run(int argc, char** argv) {
           continue;
         }
       }
-      Eigen::Vector3d u(std::stod(m.at(r, "ux_eci")), std::stod(m.at(r, "uy_eci")), std::stod(m.at(r, "uz_eci")));
-      const double sigma = std::stod(m.at(r, "sigma_rad"));
+      Eigen::Vector3d u(m.number(r, "ux_eci"), m.number(r, "uy_eci"), m.number(r, "uz_eci"));
+      const double sigma = m.number(r, "sigma_rad");
       if (bearings_mode != "measured") {
         const auto& o = truth.at(t).at(observer);
         const auto& g = truth.at(t).at(ids[static_cast<std::size_t>(best)]);
@@ -228,13 +187,13 @@ int run(int argc, char** argv) {
   std::vector<double> nees_sum(static_cast<std::size_t>(n), 0.0);
   std::vector<int> nees_steps(static_cast<std::size_t>(n), 0), fused(static_cast<std::size_t>(n), 0),
       offered(static_cast<std::size_t>(n), 0);
-  const Table gnss = read_table(run_dir + "/gnss.csv");
-  for (const auto& r : gnss.rows) {
-    if (gnss.at(r, "spacecraft") != observer || gnss.at(r, "valid") != "1") continue;
+  const auto gnss = io::CsvTable::read(run_dir + "/gnss.csv");
+  for (std::size_t r = 0; r < gnss.size(); ++r) {
+    if (gnss.text(r, "spacecraft") != observer || gnss.text(r, "valid") != "1") continue;
     sod::GnssMeasurement g;
-    g.t = astro::TimeTT{std::stoll(gnss.at(r, "t_tt_ns"))};
-    g.x_eci.r_m << std::stod(gnss.at(r, "x_m")), std::stod(gnss.at(r, "y_m")), std::stod(gnss.at(r, "z_m"));
-    g.x_eci.v_mps << std::stod(gnss.at(r, "vx_mps")), std::stod(gnss.at(r, "vy_mps")), std::stod(gnss.at(r, "vz_mps"));
+    g.t = astro::TimeTT{gnss.integer(r, "t_tt_ns")};
+    g.x_eci.r_m << gnss.number(r, "x_m"), gnss.number(r, "y_m"), gnss.number(r, "z_m");
+    g.x_eci.v_mps << gnss.number(r, "vx_mps"), gnss.number(r, "vy_mps"), gnss.number(r, "vz_mps");
     g.sigma_r_m = sigma_r;
     g.sigma_v_mps = sigma_v;
     if (!started) {

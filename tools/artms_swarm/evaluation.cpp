@@ -11,28 +11,22 @@
 
 #include "artms/astro/elements.hpp"
 #include "artms/astro/roe.hpp"
+#include "artms/io/csv.hpp"
 #include "artms/io/oem.hpp"
 
 namespace artms::swarm {
 
 namespace fs = std::filesystem;
 
-std::vector<std::string> split_csv(const std::string& line, char sep) {
-  std::vector<std::string> out;
-  std::stringstream ss(line);
-  std::string c;
-  while (std::getline(ss, c, sep)) out.push_back(c);
-  return out;
-}
+std::vector<std::string> split_csv(const std::string& line, char sep) { return io::split_fields(line, sep); }
 
 namespace {
 
-// Header name -> column index.
-std::map<std::string, std::size_t> columns(const std::string& header) {
-  std::map<std::string, std::size_t> m;
-  const auto h = split_csv(header);
-  for (std::size_t i = 0; i < h.size(); ++i) m[h[i]] = i;
-  return m;
+// A run-folder file the evaluation could not read: on stderr and in
+// summary.json ("evaluation_errors"), never silently skipped.
+void report_error(nlohmann::json& summary, const std::string& what) {
+  std::fprintf(stderr, "artms-swarm: evaluation: %s\n", what.c_str());
+  summary["evaluation_errors"].push_back(what);
 }
 
 struct Row {
@@ -68,71 +62,66 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     out << "t_utc,t_tt_ns,observer,mode,source,pos_err_m,vel_err_mps,sigma_pos_m,sigma_vel_mps\n";
     for (const auto& o : sc.observers) {
       summary["observers"][o.spacecraft]["period_s"] = period_s;
-      std::ifstream in(dir / "nav" / (o.spacecraft + ".csv"));
-      std::string line;
-      if (!std::getline(in, line)) continue;
-      const auto col = columns(line);
-      while (std::getline(in, line)) {
-        const auto c = split_csv(line);
-        try {
-          if (c.size() < 17 || c[col.at("health")] == "2") continue;
-          const std::int64_t t = std::stoll(c[col.at("t_tt_ns")]);
+      const fs::path path = dir / "nav" / (o.spacecraft + ".csv");
+      if (!fs::exists(path)) continue;
+      try {
+        const auto nav = io::CsvTable::read(path.string());
+        for (std::size_t k = 0; k < nav.size(); ++k) {
+          if (nav.text(k, "health") == "2") continue;
+          const std::int64_t t = nav.integer(k, "t_tt_ns");
           const auto it = truth[o.spacecraft].find(t);
           if (it == truth[o.spacecraft].end()) continue;
-          const astro::Vec3 r(std::stod(c[col.at("x_m")]), std::stod(c[col.at("y_m")]), std::stod(c[col.at("z_m")]));
-          const astro::Vec3 v(std::stod(c[col.at("vx_mps")]), std::stod(c[col.at("vy_mps")]),
-                              std::stod(c[col.at("vz_mps")]));
-          const double sr = std::sqrt(std::pow(std::stod(c[col.at("sigma_x_m")]), 2) +
-                                      std::pow(std::stod(c[col.at("sigma_y_m")]), 2) +
-                                      std::pow(std::stod(c[col.at("sigma_z_m")]), 2));
-          const double sv = std::sqrt(std::pow(std::stod(c[col.at("sigma_vx_mps")]), 2) +
-                                      std::pow(std::stod(c[col.at("sigma_vy_mps")]), 2) +
-                                      std::pow(std::stod(c[col.at("sigma_vz_mps")]), 2));
+          const astro::Vec3 r(nav.number(k, "x_m"), nav.number(k, "y_m"), nav.number(k, "z_m"));
+          const astro::Vec3 v(nav.number(k, "vx_mps"), nav.number(k, "vy_mps"), nav.number(k, "vz_mps"));
+          const double sr = std::sqrt(std::pow(nav.number(k, "sigma_x_m"), 2) + std::pow(nav.number(k, "sigma_y_m"), 2) +
+                                      std::pow(nav.number(k, "sigma_z_m"), 2));
+          const double sv = std::sqrt(std::pow(nav.number(k, "sigma_vx_mps"), 2) +
+                                      std::pow(nav.number(k, "sigma_vy_mps"), 2) +
+                                      std::pow(nav.number(k, "sigma_vz_mps"), 2));
           char buf[320];
-          std::snprintf(buf, sizeof buf, "%s,%lld,%s,%s,%s,%.3f,%.6f,%.3f,%.6f\n", c[0].c_str(),
-                        static_cast<long long>(t), o.spacecraft.c_str(), c[col.at("mode")].c_str(),
-                        c[col.at("source")].c_str(), (r - it->second.r_m).norm(), (v - it->second.v_mps).norm(), sr, sv);
+          std::snprintf(buf, sizeof buf, "%s,%lld,%s,%s,%s,%.3f,%.6f,%.3f,%.6f\n", nav.text(k, "t_utc").c_str(),
+                        static_cast<long long>(t), o.spacecraft.c_str(), nav.text(k, "mode").c_str(),
+                        nav.text(k, "source").c_str(), (r - it->second.r_m).norm(), (v - it->second.v_mps).norm(), sr, sv);
           out << buf;
-        } catch (const std::exception&) {
-          // a malformed row is skipped
         }
+      } catch (const std::exception& e) {
+        report_error(summary, e.what());
       }
     }
   }
   // Targets.
   std::vector<Row> rows;
-  {
-    std::ifstream in(dir / "nav" / "targets.csv");
-    std::string line;
-    if (std::getline(in, line)) {
-      const auto col = columns(line);
-      while (std::getline(in, line)) {
-        const auto c = split_csv(line);
-        try {
-          Row r;
-          r.t = std::stoll(c.at(col.at("t_tt_ns")));
-          r.observer = c.at(col.at("observer"));
-          r.target = c.at(col.at("target"));
-          for (int i = 0; i < 6; ++i) {
-            r.roe[i] = std::stod(c.at(col.at(kRoeNames[i])));
-            r.sigma[i] = std::stod(c.at(col.at(std::string("sigma_") + kRoeNames[i])));
-          }
-          r.local = std::stol(c.at(col.at("local_measurements")));
-          r.remote = std::stol(c.at(col.at("remote_measurements")));
-          if (col.count("covariance_upper") && col.at("covariance_upper") < c.size()) {
-            const auto v = split_csv(c[col.at("covariance_upper")], ' ');
-            if (v.size() == 21) {
-              std::size_t n = 0;
-              for (int a = 0; a < 6; ++a) {
-                for (int b = a; b < 6; ++b) r.P(a, b) = r.P(b, a) = std::stod(v[n++]);
-              }
-              r.full_P = true;
-            }
-          }
-          rows.push_back(r);
-        } catch (const std::exception&) {
+  if (fs::exists(dir / "nav" / "targets.csv")) {
+    try {
+      const auto tab = io::CsvTable::read((dir / "nav" / "targets.csv").string());
+      for (std::size_t k = 0; k < tab.size(); ++k) {
+        Row r;
+        r.t = tab.integer(k, "t_tt_ns");
+        r.observer = tab.text(k, "observer");
+        r.target = tab.text(k, "target");
+        for (int i = 0; i < 6; ++i) {
+          r.roe[i] = tab.number(k, kRoeNames[i]);
+          r.sigma[i] = tab.number(k, std::string("sigma_") + kRoeNames[i]);
         }
+        r.local = tab.integer(k, "local_measurements");
+        r.remote = tab.integer(k, "remote_measurements");
+        if (tab.has("covariance_upper")) {
+          const auto v = io::split_fields(tab.text(k, "covariance_upper"), ' ');
+          if (v.size() != 21) {
+            throw std::runtime_error(tab.path() + ":" + std::to_string(tab.line(k)) +
+                                     ": covariance_upper has " + std::to_string(v.size()) + " entries, expected 21");
+          }
+          std::size_t n = 0;
+          for (int a = 0; a < 6; ++a) {
+            for (int b = a; b < 6; ++b) r.P(a, b) = r.P(b, a) = std::stod(v[n++]);
+          }
+          r.full_P = true;
+        }
+        rows.push_back(r);
       }
+    } catch (const std::exception& e) {
+      report_error(summary, e.what());
+      rows.clear();
     }
   }
   std::ofstream out(dir / "eval" / "targets.csv");

@@ -5,6 +5,7 @@
 #include <map>
 
 #include "artms/fsw/observer.hpp"
+#include "artms/io/paths.hpp"
 #include "artms/sim/services.hpp"
 
 namespace artms::swarm {
@@ -20,7 +21,7 @@ InProcessResult run_in_process(const config::Scenario& sc, const fs::path& dir,
   };
   std::string current = "truth";
   try {
-    auto forces = std::make_shared<const dynamics::ForceModel>(dynamics::ForceModel::load(sc.force_model, ARTMS_DATA_DIR));
+    auto forces = std::make_shared<const dynamics::ForceModel>(dynamics::ForceModel::load(sc.force_model, io::data_dir()));
     sim::Truth truth(sc, forces, "truth");
     current = "camera-renderer";
     sim::CameraRenderer renderer(sc, "camera-renderer");
@@ -32,7 +33,7 @@ InProcessResult run_in_process(const config::Scenario& sc, const fs::path& dir,
       current = "observer-" + o.spacecraft;
       index[o.spacecraft] = observers.size();
       observers.push_back(std::make_unique<fsw::Observer>(
-          fsw::load_observer_setup((dir / "uplink" / (o.spacecraft + ".json")).string(), ARTMS_DATA_DIR), current));
+          fsw::load_observer_setup((dir / "uplink" / (o.spacecraft + ".json")).string(), io::data_dir()), current));
     }
     current = "recorder";
     sim::Recorder recorder(sc, dir.string());

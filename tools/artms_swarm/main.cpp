@@ -31,7 +31,9 @@
 #include "artms/sod/apriori.hpp"
 #include "artms/astro/roe.hpp"
 #include <random>
+#include "artms/io/csv.hpp"
 #include "artms/io/oem.hpp"
+#include "artms/io/paths.hpp"
 #include "artms/render/camera_calibration.hpp"
 #include "artms/runtime/runtime.hpp"
 #include "evaluation.hpp"
@@ -67,7 +69,7 @@ void add_ground_apriori(const artms::config::Scenario& sc, const artms::config::
 }
 
 void write_onboard_star_catalog(const std::filesystem::path& path, artms::astro::TimeTT epoch) {
-  const auto bsc = artms::imaging::StarCatalog::load_bsc5(std::string(ARTMS_DATA_DIR) + "/stars/bsc5.dat", 6.5);
+  const auto bsc = artms::imaging::StarCatalog::load_bsc5(artms::io::data_dir() + "/stars/bsc5.dat", 6.5);
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path.string());
   out << "catalog_id,ux_eci,uy_eci,uz_eci\n";
@@ -143,15 +145,17 @@ std::string hms(double s) {
   return buf;
 }
 
-// Last data row of a CSV (header skipped), split on commas.
-std::vector<std::string> last_row(const fs::path& path) {
-  std::ifstream in(path);
-  std::string line, last;
-  std::getline(in, line);  // header
-  while (std::getline(in, line)) {
-    if (!line.empty()) last = line;
+// A run-folder CSV (io::CsvTable), or nullopt when it is missing; a
+// malformed one is reported in summary.json's "evaluation_errors".
+std::optional<io::CsvTable> read_table(const fs::path& path, nlohmann::json& j) {
+  if (!fs::exists(path)) return std::nullopt;
+  try {
+    return io::CsvTable::read(path.string());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "artms-swarm: %s\n", e.what());
+    j["evaluation_errors"].push_back(e.what());
+    return std::nullopt;
   }
-  return swarm::split_csv(last);
 }
 
 nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
@@ -168,22 +172,27 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
     for (auto& s : io::read_oem_file((dir / "truth.oem").string()).segments) truth[s.object_name] = s;
   }
   j["observers"] = nlohmann::json::object();
+  std::map<std::string, std::optional<io::CsvTable>> nav;
+  for (const auto& o : sc.observers) nav[o.spacecraft] = read_table(dir / "nav" / (o.spacecraft + ".csv"), j);
   for (const auto& o : sc.observers) {
     nlohmann::json obs;
-    const auto row = last_row(dir / "nav" / (o.spacecraft + ".csv"));
-    obs["mode"] = row.size() > 2 ? std::stoi(row[2]) : o.mode;
+    const auto& tab = nav[o.spacecraft];
+    const bool any = tab && !tab->empty();
+    const std::size_t last = any ? tab->size() - 1 : 0;
+    obs["mode"] = any ? static_cast<int>(tab->integer(last, "mode")) : o.mode;
     obs["mode_requested"] = o.mode;
     nlohmann::json abs = {{"final_pos_error_m", nullptr}, {"final_pos_sigma_m", nullptr}};
-    if (row.size() >= 17 && row[3] == "0") {
-      const astro::TimeTT t{std::stoll(row[1])};
-      const astro::Vec3 r(std::stod(row[5]), std::stod(row[6]), std::stod(row[7]));
-      const double sigma = std::sqrt(std::pow(std::stod(row[11]), 2) + std::pow(std::stod(row[12]), 2) +
-                                     std::pow(std::stod(row[13]), 2));
+    if (any && tab->text(last, "health") == "0") {
+      const astro::TimeTT t{tab->integer(last, "t_tt_ns")};
+      const astro::Vec3 r(tab->number(last, "x_m"), tab->number(last, "y_m"), tab->number(last, "z_m"));
+      const double sigma = std::sqrt(std::pow(tab->number(last, "sigma_x_m"), 2) +
+                                     std::pow(tab->number(last, "sigma_y_m"), 2) +
+                                     std::pow(tab->number(last, "sigma_z_m"), 2));
       abs["final_pos_sigma_m"] = sigma;
       auto it = truth.find(o.spacecraft);
       if (it != truth.end()) {
-        for (const auto& s : it->second.samples) {
-          if (s.t == t) abs["final_pos_error_m"] = (s.x_eci.r_m - r).norm();
+        for (const auto& smp : it->second.samples) {
+          if (smp.t == t) abs["final_pos_error_m"] = (smp.x_eci.r_m - r).norm();
         }
       }
     }
@@ -194,13 +203,11 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
   // Camera: frames scheduled / dropped (frame truth), received (observer).
   {
     std::map<std::string, std::map<std::string, std::pair<bool, bool>>> seen;  // obs -> frame -> (dropped, excluded)
-    std::ifstream in(dir / "frames.csv");
-    std::string line;
-    std::getline(in, line);
-    while (std::getline(in, line)) {
-      const std::vector<std::string> c = swarm::split_csv(line);
-      if (c.size() < 7) continue;
-      seen[c[2]][c[3]] = {c[5] == "1", c[6] != "none"};
+    if (const auto frames = read_table(dir / "frames.csv", j)) {
+      for (std::size_t k = 0; k < frames->size(); ++k) {
+        seen[frames->text(k, "observer")][frames->text(k, "frame")] = {frames->text(k, "dropped") == "1",
+                                                                        frames->text(k, "exclusion") != "none"};
+      }
     }
     j["camera"] = nlohmann::json::object();
     for (const auto& o : sc.observers) {
@@ -210,8 +217,8 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
         dropped += fl.first ? 1 : 0;
         excluded += fl.second ? 1 : 0;
       }
-      const auto row = last_row(dir / "nav" / (o.spacecraft + ".csv"));
-      const long received = row.size() >= 19 ? std::stol(row[18]) : 0;
+      const auto& tab = nav[o.spacecraft];
+      const long received = tab && !tab->empty() ? static_cast<long>(tab->integer(tab->size() - 1, "frames_received")) : 0;
       j["camera"][o.spacecraft] = {{"cadence_s", o.camera.cadence_s},
                                    {"frames_scheduled", scheduled},
                                    {"frames_dropped", dropped},
@@ -237,21 +244,17 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
         if (a.spacecraft != b.spacecraft) per_link[a.spacecraft + "->" + b.spacecraft] = zero();
       }
     }
-    std::ifstream in(dir / "isl.csv");
-    std::string line;
-    std::getline(in, line);
-    while (std::getline(in, line)) {
-      const std::vector<std::string> c = swarm::split_csv(line);
-      if (c.size() < 11) continue;
-      const std::string key = c[2] + "->" + c[3];
+    const auto isl = read_table(dir / "isl.csv", j);
+    for (std::size_t k = 0; isl && k < isl->size(); ++k) {
+      const std::string key = isl->text(k, "sender") + "->" + isl->text(k, "receiver");
       if (!per_link.contains(key)) per_link[key] = zero();
       for (nlohmann::json* acc : {&total, &per_link[key]}) {
         (*acc)["sent"] = (*acc)["sent"].get<long>() + 1;
-        if (c[9] == "delivered") {
+        if (isl->text(k, "status") == "delivered") {
           (*acc)["delivered"] = (*acc)["delivered"].get<long>() + 1;
         } else {
           auto& d = (*acc)["dropped"];
-          d[c[10]] = d.value(c[10], 0L) + 1;
+          d[isl->text(k, "reason")] = d.value(isl->text(k, "reason"), 0L) + 1;
         }
       }
     }
@@ -274,7 +277,7 @@ int cmd_validate(const std::string& path) {
 
 int cmd_run(const std::string& scenario_path, const std::string& duration, double orbits,
             std::optional<std::uint64_t> seed, const std::string& rate_text, std::string out,
-            double step_timeout_s, bool in_process) {
+            double step_timeout_s, bool in_process, bool report) {
   config::Scenario sc;
   try {
     sc = config::load_scenario(scenario_path);
@@ -503,7 +506,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
     }
   }
   // Plots (artms-report): failures are reported, never fatal.
-  if (fs::exists(bin_dir / "artms-report")) {
+  if (report && fs::exists(bin_dir / "artms-report")) {
     const pid_t rp = spawn(bin_dir / "artms-report", {dir.string()}, dir / "logs" / "report.log");
     int st = 0;
     waitpid(rp, &st, 0);
@@ -547,6 +550,8 @@ int main(int argc, char** argv) {
   bool in_process = false;
   run->add_flag("--in-process", in_process,
                 "step the same objects in this one process without DDS (campaigns; same run folder as the DDS run)");
+  bool no_report = false;
+  run->add_flag("--no-report", no_report, "do not draw the run's plots (artms-report) at the end (campaigns draw their own)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -555,7 +560,7 @@ int main(int argc, char** argv) {
   try {
     if (*validate) return cmd_validate(vpath);
     return cmd_run(rpath, duration, orbits, s->count() ? std::optional<std::uint64_t>(seed) : std::nullopt,
-                   rate, out, step_timeout, in_process);
+                   rate, out, step_timeout, in_process, !no_report);
   } catch (const std::exception& e) {
     std::cerr << "artms-swarm: error: " << e.what() << "\n";
     return 2;

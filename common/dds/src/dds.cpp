@@ -5,6 +5,8 @@
 #include <cstring>
 #include <string>
 
+#include "artms/io/paths.hpp"
+
 namespace artms::dds {
 
 DdsError::DdsError(const std::string& what, dds_return_t rc)
@@ -12,7 +14,7 @@ DdsError::DdsError(const std::string& what, dds_return_t rc)
 
 void ensure_loopback_config() {
   if (std::getenv("CYCLONEDDS_URI") == nullptr) {
-    const std::string uri = std::string("file://") + ARTMS_CONFIG_DIR + "/cyclonedds-loopback.xml";
+    const std::string uri = std::string("file://") + io::config_dir() + "/cyclonedds-loopback.xml";
     setenv("CYCLONEDDS_URI", uri.c_str(), 0);
   }
 }

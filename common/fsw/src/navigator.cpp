@@ -189,8 +189,8 @@ void Navigator::add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u
 
 bool Navigator::direct_assigned(astro::TimeTT t, const Eigen::Vector3d& u_eci) const {
   return std::any_of(direct_.begin(), direct_.end(), [&](const auto& d) {
-    // SAMUS carries time as seconds (double): the same frame within a microsecond.
-    return std::abs(d.first.ns_since_j2000 - t.ns_since_j2000) < 1000 && d.second == u_eci;
+    // SAMUS carries the frame's time tag unchanged (TimeTT): the same frame.
+    return d.first == t && d.second == u_eci;
   });
 }
 

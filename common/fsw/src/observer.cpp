@@ -32,8 +32,6 @@ bus::ImpMeasurement imp_measurement(std::uint32_t frame_seq, std::int64_t t_ns, 
   return m;
 }
 
-std::int64_t ns_from_s(double t_s) { return static_cast<std::int64_t>(std::llround(t_s * 1e9)); }
-
 }  // namespace
 
 imp::Intrinsics intrinsics_from(const config::CameraCalibration& c) {
@@ -246,8 +244,8 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
   ++n_.frames_received;
   if (!processor_) return;
   const std::span<const std::uint16_t> pixels(f.pixels.data(), f.pixels.size());
-  const double t_s = static_cast<double>(f.time_tag_tt_ns) * 1e-9;
-  const imp::FrameSummary fr = processor_->process(pixels, t_s);
+  const astro::TimeTT tf{f.time_tag_tt_ns};
+  const imp::FrameSummary fr = processor_->process(pixels, tf);
   rep.status = fr.attitude_usable ? bus::FrameStatus::kOk
                                   : (fr.status == "no_detections" ? bus::FrameStatus::kNoDetections
                                                                   : bus::FrameStatus::kNotIdentified);
@@ -281,8 +279,7 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
     if (last_fix_) {
       imp::TrackerInput in;
       in.frame = f.frame_seq;
-      in.t_s = t_s;
-      const astro::TimeTT tf{f.time_tag_tt_ns};
+      in.t = tf;
       in.observer_eci =
           astro::cartesian_from_qns(onboard_.propagate(astro::qns_from_cartesian(last_fix_->x), last_fix_->t, tf));
       in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
@@ -334,7 +331,7 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
         }
       }
       for (const auto& m : ss.released) {
-        const std::int64_t t_ns = ns_from_s(m.t_s);
+        const std::int64_t t_ns = m.t.ns_since_j2000;
         report_measurement(meas, static_cast<std::uint32_t>(m.frame), t_ns, m.track_id, m.c);
         const auto qa = frame_attitude_.find(static_cast<std::uint32_t>(m.frame));
         if (navigator_ && qa != frame_attitude_.end()) {
@@ -363,7 +360,7 @@ void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
   }
   pending_direct_.clear();
   for (const auto& m : samus_->flush()) {
-    const std::int64_t t_ns = ns_from_s(m.t_s);
+    const std::int64_t t_ns = m.t.ns_since_j2000;
     const auto qa = frame_attitude_.find(static_cast<std::uint32_t>(m.frame));
     if (navigator_ && qa != frame_attitude_.end()) {
       navigator_->add_bearing(astro::TimeTT{t_ns}, m.track_id, m.c.u_eci, qa->second, m.c.sigma_rad, m.segment);

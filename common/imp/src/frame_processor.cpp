@@ -47,7 +47,8 @@ FrameProcessor::FrameProcessor(Intrinsics intrinsics, const StarIdCatalog& catal
   opt_.validate();
 }
 
-FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, double t_s) {
+FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astro::TimeTT t) {
+  const double t_s = t.seconds_since_j2000();
   FrameSummary out;
   const DetectionResult det = detect(pixels, K_.width, K_.height, opt_.detection);
   out.detections = static_cast<int>(det.centroids.size());

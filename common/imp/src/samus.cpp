@@ -204,7 +204,7 @@ void Samus::release(Family& f, std::int64_t upto_seq, std::vector<TrackedMeasure
   const auto& meas = f.branches[0].meas;
   while (f.released < meas.size() && meas[f.released].seq <= upto_seq) {
     const Meas& m = meas[f.released++];
-    out.push_back({m.frame, m.t_s, f.id, m.candidate, m.c, f.segments});
+    out.push_back({m.frame, m.t, f.id, m.candidate, m.c, f.segments});
   }
 }
 
@@ -232,7 +232,8 @@ SamusFrameSummary Samus::process(const TrackerInput& in, std::span<const TargetP
     Meas m;
     m.seq = seq_;
     m.frame = in.frame;
-    m.t_s = in.t_s;
+    m.t = in.t;
+    m.t_s = in.t.seconds_since_j2000();
     m.candidate = static_cast<int>(i);
     m.p = Eigen::Vector2d(v.dot(e1_rtn_), v.dot(e2_rtn_)) / z;
     m.sigma = std::hypot(c.sigma_rad, opt_.model_floor_rad);
@@ -371,7 +372,7 @@ SamusFrameSummary Samus::process(const TrackerInput& in, std::span<const TargetP
   // 4. Lost tracks; tentative ones that never confirmed are dropped.
   for (auto& f : families_) {
     if (f.lost) continue;
-    if (in.t_s - f.branches[0].meas.back().t_s > opt_.lost_after_s) {
+    if (in.t.seconds_since_j2000() - f.branches[0].meas.back().t_s > opt_.lost_after_s) {
       f.lost = true;
       f.branches.resize(1);
       if (f.confirmed) release(f, seq_, s.released);
@@ -383,7 +384,7 @@ SamusFrameSummary Samus::process(const TrackerInput& in, std::span<const TargetP
     if (!f.lost) return false;
     if (!f.confirmed) return true;
     // Beyond the joining window a lost track is final.
-    if (in.t_s - f.branches[0].meas.back().t_s > opt_.join_max_gap_s) {
+    if (in.t.seconds_since_j2000() - f.branches[0].meas.back().t_s > opt_.join_max_gap_s) {
       retired_.push_back(info_of(f));
       ++retired;
       return true;
@@ -474,7 +475,7 @@ SamusFrameSummary Samus::process(const TrackerInput& in, std::span<const TargetP
     unassigned_ = std::move(keep);
   }
   std::stable_sort(s.released.begin(), s.released.end(),
-                   [](const auto& a, const auto& b) { return std::tie(a.t_s, a.track_id) < std::tie(b.t_s, b.track_id); });
+                   [](const auto& a, const auto& b) { return std::tie(a.t, a.track_id) < std::tie(b.t, b.track_id); });
   return s;
 }
 
@@ -528,7 +529,7 @@ std::vector<TrackedMeasurement> Samus::flush() {
   std::vector<TrackedMeasurement> out;
   for (auto& f : families_) release(f, seq_, out);
   std::stable_sort(out.begin(), out.end(),
-                   [](const auto& a, const auto& b) { return std::tie(a.t_s, a.track_id) < std::tie(b.t_s, b.track_id); });
+                   [](const auto& a, const auto& b) { return std::tie(a.t, a.track_id) < std::tie(b.t, b.track_id); });
   return out;
 }
 

@@ -80,7 +80,7 @@ Outcome run(const Scenario& sc, const SamusOptions& opt = {}) {
     const double u = kN * t;
     TrackerInput in;
     in.frame = k;
-    in.t_s = t;
+    in.t = astro::TimeTT{}.plus_seconds(t);
     in.observer_eci = x;
     in.boresight_eci = -M.col(1);
     // Eclipse: 35 minutes of every orbit (u in [2.0, 2.0 + 2.3) rad).
@@ -236,7 +236,7 @@ TEST(Samus, SodAidedPredictionGatesOnMahalanobisDistance) {
     const auto x = observer_at(t);
     TrackerInput in;
     in.frame = k;
-    in.t_s = t;
+    in.t = astro::TimeTT{}.plus_seconds(t);
     in.observer_eci = x;
     in.boresight_eci = -eci_from_rtn(x).col(1);
     Candidate c;
@@ -256,7 +256,7 @@ TEST(Samus, SodAidedPredictionGatesOnMahalanobisDistance) {
   const Eigen::Vector3d off = l.unitOrthogonal() * 60 * astro::kArcsecToRad;
   TrackerInput in;
   in.frame = 12;
-  in.t_s = t;
+  in.t = astro::TimeTT{}.plus_seconds(t);
   in.observer_eci = x;
   in.boresight_eci = -M.col(1);
   Candidate c1, c2;

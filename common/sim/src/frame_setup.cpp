@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "artms/astro/constants.hpp"
+#include "artms/io/paths.hpp"
 
 namespace artms::render {
 namespace {
@@ -35,10 +36,10 @@ FrameSetup make_frame_setup(const config::Scenario& s, const std::string& observ
   }
   if (!obs) throw std::invalid_argument("'" + observer + "' is not an observer of scenario " + s.name);
   const std::string cam_path =
-      camera_path.empty() ? std::string(ARTMS_CONFIG_DIR) + "/cameras/" + obs->camera.model + ".yaml" : camera_path;
+      camera_path.empty() ? io::config_dir() + "/cameras/" + obs->camera.model + ".yaml" : camera_path;
   imaging::CameraModel camera = imaging::CameraModel::load(cam_path);
   imaging::StarCatalog catalog =
-      imaging::StarCatalog::load_bsc5(std::string(ARTMS_DATA_DIR) + "/stars/bsc5.dat", 99.0);
+      imaging::StarCatalog::load_bsc5(io::data_dir() + "/stars/bsc5.dat", 99.0);
   imaging::RenderOptions options;
   options.profile = flight_like ? imaging::TargetProfile::flight_like() : imaging::TargetProfile::nominal();
   if (noise_free) {
@@ -84,7 +85,7 @@ config::CameraCalibration calibration_from(const imaging::CameraModel& cam) {
 }
 
 config::CameraCalibration calibration_of_model(const std::string& model) {
-  return calibration_from(imaging::CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/" + model + ".yaml"));
+  return calibration_from(imaging::CameraModel::load(io::config_dir() + "/cameras/" + model + ".yaml"));
 }
 
 }  // namespace artms::render

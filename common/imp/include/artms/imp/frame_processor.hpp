@@ -20,6 +20,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "artms/astro/time.hpp"
 #include "artms/imp/aided_detection.hpp"
 #include "artms/imp/detection.hpp"
 #include "artms/imp/star_id.hpp"
@@ -106,9 +107,9 @@ struct FrameSummary {
 class FrameProcessor {
  public:
   FrameProcessor(Intrinsics intrinsics, const StarIdCatalog& catalog, FrameProcessorOptions options = {});
-  // pixels: row-major width x height of the intrinsics. t_s: frame time tag
-  // (any epoch, seconds), used for the history ages only.
-  FrameSummary process(std::span<const std::uint16_t> pixels, double t_s);
+  // pixels: row-major width x height of the intrinsics. t: the frame's time
+  // tag, used for the history ages only.
+  FrameSummary process(std::span<const std::uint16_t> pixels, astro::TimeTT t);
   [[nodiscard]] const Intrinsics& intrinsics() const { return K_; }
   // SOD-aided detection (aided_detection.hpp) in the frame process() took
   // last, which must have had a usable attitude: a candidate near the

@@ -93,8 +93,8 @@ struct SamusOptions {
 
 struct TrackerInput {
   std::int64_t frame = 0;  // caller's frame number (output only)
-  double t_s = 0.0;        // time tag, seconds (any fixed epoch)
-  astro::StateVector observer_eci;  // coarse observer orbit estimate at t_s
+  astro::TimeTT t;         // the frame's time tag (TT)
+  astro::StateVector observer_eci;  // coarse observer orbit estimate at t
   Eigen::Vector3d boresight_eci = Eigen::Vector3d::UnitZ();
   std::vector<Candidate> candidates;
 };
@@ -110,7 +110,7 @@ struct TargetPrediction {
 
 struct TrackedMeasurement {
   std::int64_t frame = 0;
-  double t_s = 0.0;
+  astro::TimeTT t;  // its frame's time tag, exactly as given in TrackerInput
   int track_id = -1;
   int candidate = -1;  // index into that frame's candidates
   Candidate c;
@@ -163,7 +163,8 @@ class Samus {
   struct Meas {
     std::int64_t seq = 0;  // internal frame counter
     std::int64_t frame = 0;
-    double t_s = 0.0;
+    astro::TimeTT t;
+    double t_s = 0.0;      // t in seconds since J2000 (the kinematic rules' arithmetic)
     int candidate = -1;
     Eigen::Vector2d p;     // tracking plane
     double sigma = 0.0;    // per axis, incl. model floor

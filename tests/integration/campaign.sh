@@ -1,0 +1,109 @@
+#!/usr/bin/env bash
+# Issue 15: the campaign runner (tools/artms_swarm/campaign.py) on
+# starling_pse.yaml, 3 seeds x 0.5 orbits, 2 at a time: campaign_summary.json
+# has every observer/target of the runs over 3 seeds and its plots; a second
+# call reuses the 3 seed folders; a changed scenario file (one comment line)
+# makes all 3 stale and runs them again (same results); the same campaign on a
+# Dask LocalCluster of 2 workers on 127.0.0.1 gives byte-identical per-seed
+# summary.json files and the same campaign_summary.json; a failing seed is
+# recorded (exit code, output tail), the campaign goes on and exits 1.
+# Then the unit test of tools/python/artms_tools on one seed folder.
+set -euo pipefail
+BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
+rm -rf "$WORK"; mkdir -p "$WORK"
+PY=/usr/bin/python3
+CAMPAIGN="$SRC/tools/artms_swarm/campaign.py"
+cp "$SRC/config/swarms/starling_pse.yaml" "$WORK/pse.yaml"
+common=(--seeds 3 --orbits 0.5 --bin "$BIN")
+
+campaign() {  # campaign NAME ARGS...: stdout/stderr in $WORK/NAME.out/.err, fails the test on a non-zero exit
+  local name=$1; shift
+  "$PY" "$CAMPAIGN" "$@" > "$WORK/$name.out" 2> "$WORK/$name.err" \
+    || { echo "FAIL: campaign $name exit $?"; cat "$WORK/$name.out" "$WORK/$name.err"; exit 1; }
+}
+count() { grep -c -- "$1" "$2" || true; }
+
+# 1. Three seeds, two at a time.
+start=$(date +%s%N)
+campaign first "$WORK/pse.yaml" "${common[@]}" --jobs 2 --out "$WORK/local"
+echo "3 seeds, --jobs 2: $(( ($(date +%s%N) - start) / 1000000 )) ms"
+cat "$WORK/first.out"
+grep -q "WARNING: .*--in-process" "$WORK/first.err" && echo "(artms-swarm has no --in-process yet: DDS runs)"
+"$PY" - "$WORK/local" <<'PY'
+import json, os, sys
+d = sys.argv[1]
+c = json.load(open(f"{d}/campaign_summary.json"))
+assert c["seeds"] == [1, 2, 3] and c["runs"] == 3 and c["failures"] == [], (c["seeds"], c["failures"])
+pairs = set()
+for s in c["seeds"]:
+    j = json.load(open(f"{d}/seed_{s}/summary.json"))
+    pairs |= {f"{o}/{t}" for o, od in j["observers"].items() for t in od.get("targets", {})}
+assert pairs and pairs == set(c["targets"]), (pairs, set(c["targets"]))
+for k, t in c["targets"].items():
+    obs, tgt = k.split("/")
+    assert t["runs"] == 3 and len(t["convergence_orbits"]) == 3, k
+    for key in ("frac_inside_band", "frac_inside_band_after_median", "mean_nees_after", "steps"):
+        assert key in t, (k, key)
+    assert len(t["final_dlambda_error_pct"]["per_seed"]) == 3 and t["final_dlambda_error_pct"]["max"] is not None, k
+    assert len(t["frac_within_3sigma"]["per_seed"]) == 3, k
+    assert t["convergence"]["never_converged"] == sum(v is None for v in t["convergence"]["per_seed"]), k
+    for png in (f"campaign_nees_{obs}_{tgt}.png", f"campaign_error_{obs}_{tgt}.png"):
+        assert os.path.getsize(f"{d}/{png}") > 0, png
+assert c["nis"] is None and "not recorded" in c["nis_note"], c["nis_note"]
+for s in c["seeds"]:
+    r = json.load(open(f"{d}/seed_{s}/campaign_run.json"))
+    assert r["seed"] == s and r["span"] == {"orbits": 0.5} and len(r["scenario_sha256"]) == 64, r
+print("campaign summary:", ", ".join(f"{k} {t['runs']} runs" for k, t in c["targets"].items()))
+PY
+for s in 1 2 3; do cp "$WORK/local/seed_$s/summary.json" "$WORK/summary_$s.json"; done
+
+# 2. The same call again: every seed reused, nothing run.
+campaign again "$WORK/pse.yaml" "${common[@]}" --jobs 2 --out "$WORK/local"
+[ "$(count ': reused seed_' "$WORK/again.err")" = 3 ] || { echo "FAIL: seeds not reused"; cat "$WORK/again.err"; exit 1; }
+[ "$(count ' started$' "$WORK/again.err")" = 0 ] || { echo "FAIL: a seed ran again"; cat "$WORK/again.err"; exit 1; }
+cmp "$WORK/first.out" "$WORK/again.out" || { echo "FAIL: another summary from reused seeds"; exit 1; }
+
+# 3. A comment line changes the scenario's bytes: every seed is stale and runs again.
+echo "# campaign test: this comment changes the file's sha256" >> "$WORK/pse.yaml"
+campaign edited "$WORK/pse.yaml" "${common[@]}" --jobs 2 --out "$WORK/local"
+[ "$(count 'is stale (.*the scenario file changed' "$WORK/edited.err")" = 3 ] \
+  || { echo "FAIL: edited scenario did not make the seeds stale"; cat "$WORK/edited.err"; exit 1; }
+[ "$(count ' finished in ' "$WORK/edited.err")" = 3 ] || { echo "FAIL: seeds not re-run"; cat "$WORK/edited.err"; exit 1; }
+for s in 1 2 3; do cmp "$WORK/summary_$s.json" "$WORK/local/seed_$s/summary.json" \
+  || { echo "FAIL: seed $s gave another summary.json after a comment-only change"; exit 1; }; done
+
+# 4. The same campaign on a Dask LocalCluster (2 workers, loopback).
+start=$(date +%s%N)
+campaign dask "$WORK/pse.yaml" "${common[@]}" --dask-local 2 --out "$WORK/dask"
+echo "3 seeds, --dask-local 2: $(( ($(date +%s%N) - start) / 1000000 )) ms"
+grep -q "LocalCluster at tcp://127.0.0.1:" "$WORK/dask.err" || { echo "FAIL: cluster not on 127.0.0.1"; cat "$WORK/dask.err"; exit 1; }
+for s in 1 2 3; do cmp "$WORK/local/seed_$s/summary.json" "$WORK/dask/seed_$s/summary.json" \
+  || { echo "FAIL: seed $s: Dask and local summary.json differ"; exit 1; }; done
+cmp "$WORK/local/campaign_summary.json" "$WORK/dask/campaign_summary.json" \
+  || { echo "FAIL: Dask and local campaign_summary.json differ"; exit 1; }
+
+# 5. A failing seed: recorded, the others go on, exit 1.
+mkdir -p "$WORK/failbin"
+cat > "$WORK/failbin/artms-swarm" <<EOF
+#!/usr/bin/env bash
+case " \$* " in *" --seed 4 "*) echo "injected failure for seed 4" >&2; exit 3;; esac
+exec "$BIN/artms-swarm" "\$@"
+EOF
+chmod +x "$WORK/failbin/artms-swarm"
+rc=0
+"$PY" "$CAMPAIGN" "$WORK/pse.yaml" --seeds 2 --first-seed 3 --orbits 0.5 --bin "$WORK/failbin" --out "$WORK/local" \
+  > "$WORK/fail.out" 2> "$WORK/fail.err" || rc=$?
+[ "$rc" = 1 ] || { echo "FAIL: campaign with a failed seed exit $rc, expected 1"; cat "$WORK/fail.err"; exit 1; }
+grep -q "seed 4 FAILED" "$WORK/fail.err" || { echo "FAIL: failure not reported"; cat "$WORK/fail.err"; exit 1; }
+"$PY" - "$WORK/local/campaign_summary.json" <<'PY'
+import json, sys
+c = json.load(open(sys.argv[1]))
+assert c["seeds"] == [3] and c["seeds_requested"] == [3, 4], c["seeds"]
+f = c["failures"]
+assert len(f) == 1 and f[0]["seed"] == 4 and f[0]["exit_code"] == 3, f
+assert any("injected failure for seed 4" in line for line in f[0]["output_tail"]), f
+PY
+
+# 6. The shared Python module, on one seed folder.
+"$PY" "$SRC/tests/integration/python_tools_test.py" "$WORK/local/seed_1"
+echo "campaign: ok"

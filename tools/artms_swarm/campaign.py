@@ -1,0 +1,617 @@
+#!/usr/bin/python3
+"""Campaign of one scenario over seeds: run them in parallel, then NEES consistency and statistics.
+
+usage: campaign.py SCENARIO.yaml --seeds N (--orbits X | --duration 6h) --out DIR
+                   [--first-seed 1] [--jobs J] [--in-process | --dds] [--bin build/bin] [--rerun]
+                   [--from-orbit X]
+                   [--dask-local N | --dask-scheduler tcp://HOST:PORT]
+
+Each seed s is `artms-swarm run SCENARIO --seed s (--orbits X | --duration D) --out DIR/seed_<s>`
+(with --in-process by default; --dds runs the multi-process DDS swarm). --jobs
+seeds run at a time on this machine, or each seed is one task of a Dask
+cluster: --dask-local N starts a LocalCluster of N single-thread workers on
+127.0.0.1 (no dashboard), --dask-scheduler submits to a running scheduler
+whose workers see the same paths. Progress on stderr; a failed seed is
+recorded (exit code, last lines of DIR/logs/seed_<s>.log) and the others go on.
+
+A seed folder is reused only if its campaign_run.json (written after the
+seed succeeded) holds the same scenario sha256, span, seed and mode and its
+summary.json gives every process exit code 0; any other seed folder is
+deleted and run again (--rerun: always).
+
+Writes DIR/campaign_summary.json (the same for the same seeds whatever ran
+them), DIR/campaign_timing.json (wall times, reuse, hosts),
+DIR/campaign_nees_<observer>_<target>.png and
+DIR/campaign_error_<observer>_<target>.png. Per observer and target: the NEES
+of the six ROE averaged over the runs at every navigation step against the
+two-sided 95 % band of that average (chi-square with 6R degrees of freedom
+divided by R, R = runs), the fraction of steps inside it after the latest and
+after the median convergence (the second half of the run when a run never
+converged), the mean NEES there; the final a*dlambda error and 1-sigma in % of
+range, convergence orbits and the seeds that never converged, each seed's
+fraction within 3 sigma; and the failures. Exit status 0 when every seed ran,
+1 when one failed, 2 on a usage error.
+Needs Debian's python3-numpy, python3-scipy, python3-matplotlib; python3-distributed for --dask-*.
+"""
+import argparse
+import concurrent.futures
+import hashlib
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "python"))
+from artms_tools.runfolder import RunFolderError, read_summary, target_nees  # noqa: E402
+
+RECORD = "campaign_run.json"
+TAIL_LINES = 20
+NIS_NOTE = ("NIS is not recorded: the run folder holds no innovations (eval/targets.csv has no NIS column), "
+            "so no NIS band is computed")
+
+
+_SAY = threading.Lock()
+
+
+def say(msg):
+    """A progress line on stderr (whole lines, also from worker threads)."""
+    with _SAY:
+        sys.stderr.write(f"campaign: {msg}\n")
+        sys.stderr.flush()
+
+
+# ---------------------------------------------------------------- one seed (also a Dask task)
+# Standard library only: Dask ships run_seed to its workers by value.
+
+def seed_problem(seed_dir, seed):
+    """Why a finished seed folder is not a good run (None when it is): summary.json missing, unreadable,
+    for another seed, or a process with a non-zero exit code."""
+    path = os.path.join(seed_dir, "summary.json")
+    try:
+        with open(path) as f:
+            s = json.load(f)
+    except FileNotFoundError:
+        return "no summary.json"
+    except (OSError, ValueError) as e:
+        return f"summary.json unreadable ({e})"
+    if not isinstance(s, dict) or not isinstance(s.get("processes"), list):
+        return "summary.json has no processes list"
+    if s.get("seed") != seed:
+        return f"summary.json is for seed {s.get('seed')}"
+    bad = [p for p in s["processes"] if not isinstance(p, dict) or p.get("exit_code") != 0]
+    if bad:
+        return "processes with a non-zero exit code: " + ", ".join(
+            f"{p.get('name')} {p.get('exit_code')}" if isinstance(p, dict) else str(p) for p in bad)
+    if not os.path.isfile(os.path.join(seed_dir, "eval", "targets.csv")):
+        return "no eval/targets.csv (the evaluation against truth did not run)"
+    return None
+
+
+def claim_dds_domain():
+    """A DDS domain in 201..230 that no other campaign seed of this host holds (flock on a file under
+    /tmp, released when the returned file is closed). The launcher picks 1..200 from its pid when
+    ARTMS_DDS_DOMAIN is unset, so parallel seeds never share a domain with each other or with it."""
+    import fcntl
+    import tempfile
+    d = os.path.join(tempfile.gettempdir(), "artms-dds-domains")
+    os.makedirs(d, exist_ok=True)
+    while True:
+        for dom in range(201, 231):
+            f = open(os.path.join(d, f"{dom}.lock"), "a")
+            try:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                return f, dom
+            except BlockingIOError:
+                f.close()
+        time.sleep(1.0)
+
+
+def run_seed(job):
+    """Runs one seed: artms-swarm into job['dir'], output to job['log']; after a clean run writes
+    campaign_run.json (job['record']). Returns a result dict (seed, exit_code, ok, problem, wall_s, host, tail)."""
+    import socket
+    t0 = time.monotonic()
+    env = dict(os.environ)
+    lock = None
+    rc, problem = None, None
+    try:
+        if job["record"]["mode"] == "dds":
+            lock, domain = claim_dds_domain()
+            env["ARTMS_DDS_DOMAIN"] = str(domain)
+        os.makedirs(os.path.dirname(job["log"]), exist_ok=True)
+        with open(job["log"], "wb") as log:
+            rc = subprocess.run(job["cmd"], stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                env=env).returncode
+    except OSError as e:
+        problem = f"could not run {job['cmd'][0]}: {e}"
+    finally:
+        if lock is not None:
+            lock.close()
+    if rc == 0:
+        problem = seed_problem(job["dir"], job["seed"])
+        if problem is None:
+            tmp = os.path.join(job["dir"], RECORD + ".tmp")
+            with open(tmp, "w") as f:
+                json.dump(job["record"], f, indent=1, sort_keys=True)
+                f.write("\n")
+            os.replace(tmp, os.path.join(job["dir"], RECORD))
+    elif rc is not None:
+        problem = f"artms-swarm exit code {rc}"
+    tail = []
+    if problem is not None:
+        try:
+            with open(job["log"], errors="replace") as f:
+                tail = [line.rstrip("\n") for line in f.readlines()[-TAIL_LINES:]]
+        except OSError:
+            pass
+    return {"seed": job["seed"], "exit_code": rc, "ok": problem is None, "problem": problem,
+            "wall_s": time.monotonic() - t0, "host": socket.gethostname(), "tail": tail}
+
+
+# ---------------------------------------------------------------- the campaign
+
+def parse_args(argv):
+    ap = argparse.ArgumentParser(prog="campaign.py", description=__doc__.split("\n")[0])
+    ap.add_argument("scenario", help="scenario YAML")
+    ap.add_argument("--seeds", type=int, required=True, help="number of seeds")
+    ap.add_argument("--first-seed", type=int, default=1, help="first seed (default 1): seeds first..first+N-1")
+    span = ap.add_mutually_exclusive_group(required=True)
+    span.add_argument("--orbits", type=float, help="simulated span in orbits (artms-swarm run --orbits)")
+    span.add_argument("--duration", help="simulated span (6h, 1d, seconds; artms-swarm run --duration)")
+    ap.add_argument("--out", required=True, help="campaign folder: DIR/seed_<s>/, DIR/logs/, DIR/campaign_*")
+    ap.add_argument("--jobs", type=int, help="seeds run at a time on this machine (default 1)")
+    mode = ap.add_mutually_exclusive_group()
+    mode.add_argument("--in-process", dest="mode", action="store_const", const="in-process",
+                      help="each seed in one process without DDS (the default; falls back to --dds with a "
+                           "warning when artms-swarm has no --in-process)")
+    mode.add_argument("--dds", dest="mode", action="store_const", const="dds",
+                      help="each seed as the multi-process DDS swarm (loopback, one DDS domain per seed)")
+    ap.add_argument("--bin", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "build", "bin"),
+                    help="folder of artms-swarm (default: build/bin of this source tree)")
+    ap.add_argument("--rerun", action="store_true", help="run every seed again, even reusable ones")
+    ap.add_argument("--seed-plots", action="store_true",
+                    help="also draw every seed's own plots (artms-report, ~3 s a seed); by default only the "
+                         "campaign's plots are drawn (artms-swarm run --no-report)")
+    ap.add_argument("--from-orbit", type=float, metavar="X",
+                    help="also report the fraction of steps inside the band from orbit X on")
+    dask = ap.add_mutually_exclusive_group()
+    dask.add_argument("--dask-local", type=int, metavar="N",
+                      help="run the seeds on a Dask LocalCluster of N workers bound to 127.0.0.1")
+    dask.add_argument("--dask-scheduler", metavar="ADDRESS",
+                      help="submit the seeds to a running Dask scheduler (tcp://HOST:PORT); its workers must "
+                           "see SCENARIO, --bin and --out at the same paths")
+    a = ap.parse_args(argv)
+    if a.seeds < 1:
+        ap.error("--seeds must be at least 1")
+    if a.jobs is not None and a.jobs < 1:
+        ap.error("--jobs must be at least 1")
+    if a.dask_local is not None and a.dask_local < 1:
+        ap.error("--dask-local must be at least 1")
+    if a.orbits is not None and not (a.orbits > 0 and math.isfinite(a.orbits)):
+        ap.error("--orbits must be positive")
+    return a
+
+
+def supports_in_process(swarm):
+    try:
+        r = subprocess.run([swarm, "run", "--help"], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return "--in-process" in r.stdout + r.stderr
+
+
+def reuse_verdict(seed_dir, record):
+    """(reusable, why): whether DIR/seed_<s> can be kept for this record, and why not."""
+    path = os.path.join(seed_dir, RECORD)
+    try:
+        with open(path) as f:
+            old = json.load(f)
+    except FileNotFoundError:
+        return False, f"no {RECORD} (an unfinished run, or one made by another tool)"
+    except (OSError, ValueError) as e:
+        return False, f"{RECORD} unreadable ({e})"
+    if old != record:
+        what = {"scenario_sha256": "the scenario file changed", "span": "another span", "seed": "another seed",
+                "mode": "another run mode"}
+        keys = sorted(set(old) | set(record) if isinstance(old, dict) else set(record))
+        diff = [k for k in keys if not isinstance(old, dict) or old.get(k) != record.get(k)]
+
+        def show(v):
+            return v[:12] + "..." if isinstance(v, str) and len(v) == 64 else json.dumps(v)
+        return False, f"{RECORD} differs: " + "; ".join(
+            f"{k} {show(old.get(k) if isinstance(old, dict) else None)} -> {show(record.get(k))}"
+            + (f" ({what[k]})" if k in what else "") for k in diff)
+    problem = seed_problem(seed_dir, record["seed"])
+    if problem:
+        return False, problem
+    return True, ""
+
+
+class Progress:
+    def __init__(self, total):
+        self.total, self.done, self.failed = total, 0, 0
+        self.lock = threading.Lock()
+
+    def started(self, seed):
+        say(f"seed {seed} started")
+
+    def finished(self, res):
+        with self.lock:
+            self.done += 1
+            self.failed += not res["ok"]
+            counts = f"[{self.done}/{self.total} done, {self.failed} failed]"
+        if res["ok"]:
+            say(f"seed {res['seed']} finished in {res['wall_s']:.1f} s {counts}")
+        else:
+            tail = "\n".join("    " + line for line in res["tail"])
+            say(f"seed {res['seed']} FAILED after {res['wall_s']:.1f} s: {res['problem']} {counts}"
+                + (f"; last lines of its output:\n{tail}" if tail else ""))
+
+
+def run_local(jobs, n_jobs, progress):
+    results = []
+    ex = concurrent.futures.ThreadPoolExecutor(max_workers=n_jobs)
+
+    def one(job):  # in a worker thread: "finished" is said before this thread starts the next seed
+        progress.started(job["seed"])
+        try:
+            res = run_seed(job)
+        except Exception as e:  # a bug in run_seed: record it, go on
+            res = {"seed": job["seed"], "exit_code": None, "ok": False, "problem": f"{type(e).__name__}: {e}",
+                   "wall_s": 0.0, "host": None, "tail": []}
+        progress.finished(res)
+        return res
+
+    futs = [ex.submit(one, j) for j in jobs]
+    try:
+        for f in concurrent.futures.as_completed(futs):
+            results.append(f.result())
+    except KeyboardInterrupt:
+        say("interrupted: cancelling the seeds not started")
+        ex.shutdown(wait=False, cancel_futures=True)
+        raise
+    ex.shutdown()
+    return results
+
+
+def run_dask(jobs, args, progress):
+    try:
+        import logging
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError as e:
+        raise SystemExit(f"campaign: --dask-* needs Debian's python3-distributed (scripts/install-deps.sh): {e}")
+    cluster = None
+    if args.dask_local is not None:
+        # Loopback only: scheduler, nannies and workers listen on 127.0.0.1. Scheduler and workers
+        # always start an HTTP server (health, metrics) and bind it to every interface unless given
+        # an address: 127.0.0.1 with a free port, and the scheduler's dashboard off.
+        cluster = LocalCluster(n_workers=args.dask_local, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               scheduler_port=0, dashboard_address=None, worker_dashboard_address="127.0.0.1:0",
+                               scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR)
+        client = Client(cluster)
+        say(f"Dask LocalCluster at {cluster.scheduler_address}, {args.dask_local} workers")
+    else:
+        try:
+            client = Client(args.dask_scheduler, timeout=30)
+        except (OSError, TimeoutError, ValueError) as e:
+            raise SystemExit(f"campaign: cannot reach the Dask scheduler {args.dask_scheduler}: {e}")
+        say(f"Dask scheduler {args.dask_scheduler}: {len(client.scheduler_info().get('workers', {}))} workers")
+    results, futs = [], {}
+    try:
+        for j in jobs:
+            f = client.submit(run_seed, j, pure=False, key=f"artms-seed-{j['seed']}-{os.getpid()}-{time.time_ns()}")
+            futs[f] = j
+            say(f"seed {j['seed']} submitted")
+        for f in as_completed(list(futs)):
+            try:
+                res = f.result()
+            except Exception as e:
+                res = {"seed": futs[f]["seed"], "exit_code": None, "ok": False, "problem": f"Dask task: {type(e).__name__}: {e}",
+                       "wall_s": 0.0, "host": None, "tail": []}
+            progress.finished(res)
+            results.append(res)
+    except KeyboardInterrupt:
+        say("interrupted: cancelling the Dask tasks")
+        client.cancel(list(futs))
+        raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return results
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    t_start = time.monotonic()
+    scenario = os.path.abspath(args.scenario)
+    try:
+        with open(scenario, "rb") as f:
+            scenario_sha = hashlib.sha256(f.read()).hexdigest()
+    except OSError as e:
+        say(f"cannot read the scenario: {e}")
+        return 2
+    swarm = os.path.join(os.path.abspath(args.bin), "artms-swarm")
+    if not os.access(swarm, os.X_OK):
+        say(f"no artms-swarm in {os.path.abspath(args.bin)} (build first, or give --bin)")
+        return 2
+    v = subprocess.run([swarm, "validate", scenario], capture_output=True, text=True)
+    if v.returncode != 0:
+        say(f"the scenario does not validate:\n{v.stdout}{v.stderr}")
+        return 2
+
+    mode = args.mode or "in-process"
+    if mode == "in-process" and not supports_in_process(swarm):
+        say(f"WARNING: `{swarm} run --help` does not mention --in-process (this build has no in-process "
+            f"runner yet): every seed runs as the multi-process DDS swarm instead (loopback, one DDS domain per "
+            f"seed); campaign_run.json records mode dds, so these seeds run again once --in-process exists")
+        mode = "dds"
+    span = {"orbits": float(args.orbits)} if args.orbits is not None else {"duration": args.duration}
+    span_args = ["--orbits", repr(float(args.orbits))] if args.orbits is not None else ["--duration", args.duration]
+    out = os.path.abspath(args.out)
+    os.makedirs(os.path.join(out, "logs"), exist_ok=True)
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    if args.dask_local is not None or args.dask_scheduler:
+        executor = "dask-local" if args.dask_local is not None else "dask-scheduler"
+        if args.jobs is not None:
+            say("--jobs is ignored with --dask-*: the cluster's workers set the parallelism")
+    else:
+        executor = "local"
+    n_jobs = args.jobs or 1
+    say(f"{len(seeds)} seeds ({seeds[0]}..{seeds[-1]}) of {args.scenario}, {' '.join(span_args)}, mode {mode}, "
+        + (f"{n_jobs} at a time" if executor == "local" else executor))
+
+    jobs, reused = [], []
+    for s in seeds:
+        d = os.path.join(out, f"seed_{s}")
+        record = {"scenario_sha256": scenario_sha, "span": span, "seed": s, "mode": mode,
+                  "seed_plots": bool(args.seed_plots)}
+        if os.path.exists(d):
+            ok, why = (False, "--rerun") if args.rerun else reuse_verdict(d, record)
+            if ok:
+                say(f"seed {s}: reused seed_{s} (same scenario sha256, span, seed and mode; exit codes 0)")
+                reused.append(s)
+                continue
+            say(f"seed {s}: seed_{s} is stale ({why}): deleting it and re-running the seed")
+            shutil.rmtree(d)
+        cmd = [swarm, "run", scenario, "--seed", str(s)] + span_args + ["--out", d]
+        if mode == "in-process":
+            cmd.append("--in-process")
+        if not args.seed_plots:
+            cmd.append("--no-report")
+        jobs.append({"seed": s, "cmd": cmd, "dir": d, "log": os.path.join(out, "logs", f"seed_{s}.log"),
+                     "record": record})
+
+    progress = Progress(len(jobs))
+    results = []
+    if jobs:
+        try:
+            results = run_local(jobs, n_jobs, progress) if executor == "local" else run_dask(jobs, args, progress)
+        except KeyboardInterrupt:
+            return 130
+    wall = time.monotonic() - t_start
+    failed = sorted((r for r in results if not r["ok"]), key=lambda r: r["seed"])
+    ok_seeds = sorted(reused + [r["seed"] for r in results if r["ok"]])
+    say(f"{len(results)} seeds run, {len(reused)} reused, {len(failed)} failed, in {wall:.1f} s")
+
+    meta = {"scenario_file": args.scenario, "scenario_sha256": scenario_sha, "span": span, "mode": mode,
+            "seeds_requested": seeds, "from_orbit": args.from_orbit}
+    failures = [{"seed": r["seed"], "exit_code": r["exit_code"], "problem": r["problem"],
+                 "log": os.path.join("logs", f"seed_{r['seed']}.log"), "output_tail": r["tail"]} for r in failed]
+    try:
+        summary = summarise(out, ok_seeds, meta, failures)
+    except (RunFolderError, OSError) as e:
+        say(f"cannot summarise: {e}")
+        return 1
+    with open(os.path.join(out, "campaign_summary.json"), "w") as f:
+        json.dump(summary, f, indent=1)
+        f.write("\n")
+    by_seed = {r["seed"]: r for r in results}
+    timing = {"wall_s": wall, "executor": executor, "jobs": n_jobs if executor == "local" else args.dask_local,
+              "seeds": {str(s): ({"reused": True} if s in reused else
+                                 {"reused": False, "wall_s": by_seed[s]["wall_s"], "host": by_seed[s]["host"],
+                                  "ok": by_seed[s]["ok"]}) for s in seeds}}
+    with open(os.path.join(out, "campaign_timing.json"), "w") as f:
+        json.dump(timing, f, indent=1)
+        f.write("\n")
+    print_table(summary, out)
+    return 1 if failed else 0
+
+
+# ---------------------------------------------------------------- summary and plots
+
+def _stats(values):
+    v = [x for x in values if isinstance(x, (int, float)) and math.isfinite(x)]
+    import numpy as np
+    return {"median": float(np.median(v)) if v else None, "max": float(max(v)) if v else None, "per_seed": values}
+
+
+def summarise(out, seeds, meta, failures):
+    """campaign_summary.json's content; writes the plots. The NEES part is monte_carlo.py's computation."""
+    import warnings
+    import numpy as np
+    from scipy.stats import chi2
+    nees = {}      # (obs, tgt) -> list over runs of {t: nees}
+    conv = {}      # (obs, tgt) -> list of convergence orbits (None if never)
+    per_seed = {}  # (obs, tgt) -> {seed: summary.json target entry}
+    period = None
+    name = None
+    nis_columns = set()
+    for s in seeds:
+        d = os.path.join(out, f"seed_{s}")
+        summ = read_summary(d)
+        name = name or summ.get("scenario")
+        for obs, o in summ.get("observers", {}).items():
+            period = o.get("period_s", period)
+            for tgt, t in o.get("targets", {}).items():
+                conv.setdefault((obs, tgt), []).append(t.get("convergence_orbits"))
+                per_seed.setdefault((obs, tgt), {})[s] = t
+        for k, v in target_nees(d).items():
+            nees.setdefault(k, []).append(v)
+        ev = os.path.join(d, "eval")
+        for fn in sorted(os.listdir(ev)) if os.path.isdir(ev) else []:
+            if fn.endswith(".csv"):
+                with open(os.path.join(ev, fn)) as f:
+                    header = f.readline().strip().split(",")
+                nis_columns |= {f"eval/{fn}:{c}" for c in header if "nis" in c.lower()}
+    R = len(seeds)
+    out_json = {"scenario": name, **meta, "seeds": seeds, "runs": R,
+                "band_95": [float(chi2.ppf(0.025, 6 * R) / R), float(chi2.ppf(0.975, 6 * R) / R)] if R else None,
+                "targets": {}, "nis": None,
+                "nis_note": NIS_NOTE if not nis_columns else
+                ("the run folders have " + ", ".join(sorted(nis_columns)) + " but this campaign.py does not "
+                 "evaluate NIS yet"),
+                "failures": failures}
+    for key in sorted(set(nees) | set(per_seed)):
+        obs, tgt = key
+        entry = {"observer": obs, "target": tgt}
+        runs = nees.get(key, [])
+        cs = conv.get(key, [])
+        if runs:
+            # monte_carlo.py's computation, unchanged (R is the number of runs holding this pair).
+            Rt = len(runs)
+            lo, hi = chi2.ppf(0.025, 6 * Rt) / Rt, chi2.ppf(0.975, 6 * Rt) / Rt
+            times = sorted(set.intersection(*[set(r) for r in runs]))
+            if times:
+                M = np.array([[r[t] for t in times] for r in runs])
+                ok_cols = np.all(np.isfinite(M), axis=0)
+                t0 = times[0]
+                orb = (np.array(times) - t0) * 1e-9 / (period or 5700.0)
+                start = max(cs) if cs and all(c is not None for c in cs) else orb[-1] / 2
+                sel = (orb >= start) & ok_cols
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)  # steps where every run has NaN
+                    avg = np.nanmean(M, axis=0)
+                inside = (avg >= lo) & (avg <= hi)
+                frac = float(np.mean(inside[sel])) if sel.any() else None
+                done = [c for c in cs if c is not None]
+                start_med = float(np.median(done)) if done else orb[-1] / 2
+                sel_med = (orb >= start_med) & ok_cols
+                frac_med = float(np.mean(inside[sel_med])) if sel_med.any() else None
+                if meta.get("from_orbit") is not None:
+                    sel_from = (orb >= meta["from_orbit"]) & ok_cols
+                    entry["frac_inside_band_from_orbit"] = float(np.mean(inside[sel_from])) if sel_from.any() else None
+                entry.update({
+                    "runs": Rt, "band_95": [float(lo), float(hi)],
+                    "after_orbit": float(start), "steps": int(sel.sum()), "frac_inside_band": frac,
+                    "mean_nees_after": float(np.mean(avg[sel])) if sel.any() else None,
+                    "after_median_orbit": start_med, "steps_after_median": int(sel_med.sum()),
+                    "frac_inside_band_after_median": frac_med})
+                plot_nees(out, obs, tgt, orb, avg, lo, hi, start, start_med, frac, frac_med, Rt)
+        entry["convergence_orbits"] = cs
+        ps = per_seed.get(key, {})
+        tg = [ps.get(s, {}) for s in seeds]
+        conv_seed = [t.get("convergence_orbits") for t in tg]
+        never = [s for s, t in zip(seeds, tg) if t and t.get("convergence_orbits") is None]
+        done = [c for c in conv_seed if c is not None]
+        frac3 = [t.get("frac_within_3sigma") for t in tg]
+        mins = [min(f.values()) if isinstance(f, dict) and f else None for f in frac3]
+        entry.update({
+            "final_dlambda_error_pct": _stats([t.get("final_dlambda_error_pct") for t in tg]),
+            "final_dlambda_sigma_pct": _stats([t.get("final_dlambda_sigma_pct") for t in tg]),
+            "convergence": {"median_orbits": float(np.median(done)) if done else None,
+                            "max_orbits": float(max(done)) if done else None,
+                            "never_converged": len(never), "never_converged_seeds": never,
+                            "per_seed": conv_seed},
+            "frac_within_3sigma": {"per_seed": frac3, "min_per_seed": mins,
+                                   "seeds_min_at_least_0.99": sum(1 for m in mins if m is not None and m >= 0.99)},
+            "nees_mean_per_seed": [t.get("nees_mean") for t in tg],
+            "seeds_with_target": [s for s, t in zip(seeds, tg) if t],
+        })
+        plot_errors(out, obs, tgt, seeds, tg)
+        out_json["targets"][f"{obs}/{tgt}"] = entry
+    return out_json
+
+
+def _safe(name):
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name)) or "_"
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_nees(out, obs, tgt, orb, avg, lo, hi, start, start_med, frac, frac_med, R):
+    plt = _plt()
+    plt.figure(figsize=(8, 3.5))
+    plt.semilogy(orb, avg, "k-", lw=0.8, label=f"average NEES over {R} runs")
+    plt.axhspan(lo, hi, color="tab:green", alpha=0.25, label=f"95 % band [{lo:.2f}, {hi:.2f}]")
+    plt.axhline(6, color="tab:green", lw=0.8)
+    plt.axvline(start, color="tab:red", ls="--", lw=0.8, label="latest convergence")
+    plt.axvline(start_med, color="tab:orange", ls=":", lw=0.8, label="median convergence")
+    plt.xlabel("orbits"); plt.ylabel("NEES (6 ROE)")
+    title = f"{obs} -> {tgt}"
+    if frac is not None:
+        title += f": {100 * frac:.1f} % of steps inside the band after the latest convergence"
+    if frac_med is not None:
+        title += f", {100 * frac_med:.1f} % after the median"
+    plt.title(title, fontsize=9)
+    plt.legend(fontsize=8, loc="upper right"); plt.grid(alpha=0.3); plt.tight_layout()
+    plt.savefig(os.path.join(out, f"campaign_nees_{_safe(obs)}_{_safe(tgt)}.png"), dpi=120)
+    plt.close()
+
+
+def plot_errors(out, obs, tgt, seeds, tg):
+    """Final a*dlambda error in % of range over the seeds, and every ROE's final error / 1-sigma."""
+    import numpy as np
+    plt = _plt()
+    err = np.array([t.get("final_dlambda_error_pct") for t in tg if t.get("final_dlambda_error_pct") is not None],
+                   dtype=float)
+    z = []
+    for t in tg:
+        e, s = t.get("final_error_a_roe_m"), t.get("final_sigma_a_roe_m")
+        if isinstance(e, list) and isinstance(s, list) and len(e) == len(s) == 6:
+            z += [a / b for a, b in zip(e, s) if a is not None and b]
+    z = np.array(z, dtype=float)
+    err, z = err[np.isfinite(err)], z[np.isfinite(z)]
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+    ax = axes[0]
+    if err.size:
+        ax.hist(err, bins=max(5, min(30, err.size)), color="0.4")
+        ax.axvline(float(np.median(err)), color="tab:red", ls="--", lw=0.8, label=f"median {np.median(err):.3g} %")
+        ax.legend(fontsize=8)
+    ax.set_xlabel(r"final $|a\delta\lambda|$ error [% of range]"); ax.set_ylabel("seeds")
+    ax.set_title(f"{obs} -> {tgt}: {err.size} of {len(seeds)} seeds", fontsize=9)
+    ax = axes[1]
+    if z.size:
+        lim = max(4.0, float(np.max(np.abs(z))))
+        ax.hist(z, bins=np.linspace(-lim, lim, 25), density=True, color="0.6", label="final error / 1-sigma, 6 ROE")
+        x = np.linspace(-lim, lim, 200)
+        ax.plot(x, np.exp(-x * x / 2) / math.sqrt(2 * math.pi), "k-", lw=0.8, label="N(0, 1)")
+        ax.legend(fontsize=8)
+    ax.set_xlabel("final error / 1-sigma"); ax.set_ylabel("density")
+    ax.grid(alpha=0.3); axes[0].grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, f"campaign_error_{_safe(obs)}_{_safe(tgt)}.png"), dpi=120)
+    plt.close(fig)
+
+
+def print_table(s, out):
+    def f(v, spec):
+        return spec.format(v) if isinstance(v, (int, float)) and math.isfinite(v) else "-"
+    print(f"campaign {s['scenario']}: {s['runs']} of {len(s['seeds_requested'])} seeds "
+          f"({len(s['failures'])} failed), band 95 % "
+          + (f"[{s['band_95'][0]:.2f}, {s['band_95'][1]:.2f}]" if s["band_95"] else "-"))
+    print(f"{'target':<10} {'inside latest':>13} {'inside median':>13} {'mean NEES':>9} "
+          f"{'dl err % med':>12} {'(max)':>8} {'conv med':>8} {'(max)':>6} {'never':>5}")
+    for k, t in s["targets"].items():
+        fr, frm = t.get("frac_inside_band"), t.get("frac_inside_band_after_median")
+        print(f"{k:<10} {f(fr and 100 * fr, '{:.1f} %'):>13} {f(frm and 100 * frm, '{:.1f} %'):>13} "
+              f"{f(t.get('mean_nees_after'), '{:.2f}'):>9} {f(t['final_dlambda_error_pct']['median'], '{:.3f}'):>12} "
+              f"{f(t['final_dlambda_error_pct']['max'], '{:.3f}'):>8} {f(t['convergence']['median_orbits'], '{:.2f}'):>8} "
+              f"{f(t['convergence']['max_orbits'], '{:.2f}'):>6} {t['convergence']['never_converged']:>5}")
+    for fl in s["failures"]:
+        print(f"failed: seed {fl['seed']}: {fl['problem']} ({os.path.join(out, fl['log'])})")
+    print(f"summary: {os.path.join(out, 'campaign_summary.json')}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,144 @@
+"""Reading an artms-swarm run folder (docs/runtime.md, "Run folder").
+
+CSV files are read by column name. A malformed row is an error naming the
+file, the line and the column, never a row silently dropped: a short or long
+row, a duplicated or missing header column, a value that is not a number
+where one is asked for.
+"""
+import csv
+import json
+import math
+import os
+
+
+class RunFolderError(ValueError):
+    """A run-folder file that cannot be read as documented (message: file:line: what)."""
+
+
+class Row(dict):
+    """One CSV row: column name -> text, with the place it came from.
+
+    row["x"] on a column the file does not have raises RunFolderError;
+    row.get("x") stays lenient. int()/float() convert with an error that
+    names file, line and column.
+    """
+
+    __slots__ = ("path", "line")
+
+    def __missing__(self, key):
+        raise RunFolderError(f"{self.path}:{self.line}: no column {key!r} (columns: {', '.join(self)})")
+
+    def _where(self, name):
+        return f"{self.path}:{self.line}: column {name!r}"
+
+    def int(self, name):
+        v = self[name]
+        try:
+            return int(v)
+        except (TypeError, ValueError):
+            raise RunFolderError(f"{self._where(name)}: {v!r} is not an integer") from None
+
+    def float(self, name, empty=None):
+        """float of the column; `empty` (e.g. math.nan) is returned for an empty field if given.
+
+        'nan' and '-nan' (printf of a NaN) read as NaN.
+        """
+        v = self[name]
+        if v == "" and empty is not None:
+            return empty
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            raise RunFolderError(f"{self._where(name)}: {v!r} is not a number") from None
+
+
+class Table(list):
+    """Rows of one CSV file (a list of Row) with .path and .columns (header order)."""
+
+    def __init__(self, path, columns, rows):
+        super().__init__(rows)
+        self.path = path
+        self.columns = columns
+
+
+def read_csv(path, required=()):
+    """Reads a CSV file with a header line.
+
+    Returns a Table (list of Row). A file of zero bytes gives an empty Table
+    without columns; a header-only file an empty Table with its columns.
+    Blank lines are skipped. Raises OSError when the file cannot be opened
+    and RunFolderError for: a duplicated or empty header name, a column of
+    `required` missing, a row whose field count differs from the header's,
+    a CSV syntax error.
+    """
+    with open(path, newline="") as f:
+        reader = csv.reader(f, strict=True)
+        try:
+            header = next(reader, None)
+            if header is None:
+                return Table(path, [], [])
+            seen = set()
+            for k, name in enumerate(header, start=1):
+                if name == "":
+                    raise RunFolderError(f"{path}:{reader.line_num}: header field {k} is empty")
+                if name in seen:
+                    raise RunFolderError(f"{path}:{reader.line_num}: header names column {name!r} twice")
+                seen.add(name)
+            missing = [c for c in required if c not in seen]
+            if missing:
+                raise RunFolderError(f"{path}:{reader.line_num}: no column {', '.join(map(repr, missing))} "
+                                     f"(columns: {', '.join(header)})")
+            n = len(header)
+            rows = []
+            for fields in reader:
+                if not fields:
+                    continue
+                if len(fields) != n:
+                    where = f"{path}:{reader.line_num}: {len(fields)} fields, the header has {n}"
+                    if len(fields) < n:
+                        raise RunFolderError(f"{where}: column {header[len(fields)]!r} (field {len(fields) + 1}) "
+                                             f"and after missing")
+                    raise RunFolderError(f"{where}: field {n + 1} ({fields[n]!r}) is beyond the last column "
+                                         f"{header[-1]!r}")
+                r = Row(zip(header, fields))
+                r.path, r.line = path, reader.line_num
+                rows.append(r)
+        except csv.Error as e:
+            raise RunFolderError(f"{path}:{reader.line_num}: {e}") from None
+    return Table(path, list(header), rows)
+
+
+def read_summary(run_dir):
+    """summary.json of a run folder as a dict; RunFolderError if missing, unreadable or not an object."""
+    path = os.path.join(run_dir, "summary.json")
+    try:
+        with open(path) as f:
+            s = json.load(f)
+    except FileNotFoundError:
+        raise RunFolderError(f"{path}: missing") from None
+    except (OSError, ValueError) as e:
+        raise RunFolderError(f"{path}: {e}") from None
+    if not isinstance(s, dict):
+        raise RunFolderError(f"{path}: not a JSON object")
+    return s
+
+
+def failed_processes(summary):
+    """Processes of a summary.json whose exit_code is not 0 (a missing exit_code counts as failed)."""
+    return [p for p in summary.get("processes", []) if not isinstance(p, dict) or p.get("exit_code") != 0]
+
+
+def target_nees(run_dir):
+    """NEES of eval/targets.csv: {(observer, target): {t_tt_ns: nees}} (NaN where the covariance was unusable).
+
+    A later row of the same pair and time replaces an earlier one.
+    """
+    t = read_csv(os.path.join(run_dir, "eval", "targets.csv"), required=("observer", "target", "t_tt_ns", "nees"))
+    out = {}
+    for r in t:
+        out.setdefault((r["observer"], r["target"]), {})[r.int("t_tt_ns")] = r.float("nees")
+    return out
+
+
+def finite(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
