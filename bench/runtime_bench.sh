@@ -19,12 +19,13 @@ ORBITS=${ARTMS_BENCH_ORBITS:-12}
 export CYCLONEDDS_URI=${CYCLONEDDS_URI:-file://$SRC/config/cyclonedds-loopback.xml}
 rm -rf "$OUT"; mkdir -p "$OUT"
 now() { date +%s.%N; }
+elapsed() { /usr/bin/python3 -c "import sys; print(float(sys.argv[2]) - float(sys.argv[1]))" "$1" "$(now)"; }
 for mode in dds in-process; do
   extra=(); [ "$mode" = in-process ] && extra=(--in-process)
   t0=$(now)
   "$BIN/artms-swarm" run "$SRC/config/swarms/starling_pse_multi.yaml" --duration "$SPAN" --seed 7 "${extra[@]}" \
       --out "$OUT/multi-$mode" > "$OUT/multi-$mode.out" 2>&1 || { tail -n 30 "$OUT/multi-$mode.out"; exit 1; }
-  echo "$(now) - $t0" | bc > "$OUT/multi-$mode.wall"
+  elapsed "$t0" > "$OUT/multi-$mode.wall"
 done
 identical=$(/usr/bin/python3 "$SRC/tests/integration/compare_runs.py" "$OUT/multi-dds" "$OUT/multi-in-process" \
             > "$OUT/compare.txt" 2>&1 && echo true || echo false)
@@ -32,7 +33,7 @@ t0=$(now)
 /usr/bin/python3 "$SRC/tools/artms_swarm/campaign.py" "$SRC/config/swarms/starling_pse.yaml" --seeds "$SEEDS" \
     --orbits "$ORBITS" --jobs 2 --bin "$BIN" --out "$OUT/campaign" > "$OUT/campaign.out" 2>&1 \
   || { tail -n 30 "$OUT/campaign.out"; exit 1; }
-campaign_wall=$(echo "$(now) - $t0" | bc)
+campaign_wall=$(elapsed "$t0")
 /usr/bin/python3 - "$OUT" "$SPAN" "$SEEDS" "$ORBITS" "$identical" "$campaign_wall" <<'PY'
 import json, sys
 out, span, seeds, orbits, identical, campaign_wall = sys.argv[1:]

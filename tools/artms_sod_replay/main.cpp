@@ -96,6 +96,14 @@ int run(int argc, char** argv) {
   const std::string up_path = run_dir + "/uplink/" + observer + ".json";
   const config::ObserverUplink up = config::read_uplink(up_path);
   if (up.apriori.empty()) throw std::runtime_error(up_path + ": no ground a-priori (not a mode 1 or 3 observer)");
+  if (up.observer.mode == 3) {
+    // Remote bearings are not in the run folder (isl.csv has the outcomes,
+    // not the payloads): a mode-3 replay is a local-bearings-only replay.
+    std::fprintf(stderr,
+                 "artms-sod-replay: warning: %s ran navigation mode 3; its remote bearings are not recorded, so "
+                 "this replay fuses its own GNSS fixes and local bearings only (mode 1)\n",
+                 observer.c_str());
+  }
   const auto forces = dynamics::ForceModel::load(up.force_model, io::data_dir());
   std::vector<std::string> ids;
   for (const auto& a : up.apriori) ids.push_back(a.target);

@@ -46,12 +46,15 @@ import threading
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "python"))
-from artms_tools.runfolder import RunFolderError, read_summary, target_nees  # noqa: E402
+from artms_tools.runfolder import RunFolderError, read_summary, target_nees, target_nis  # noqa: E402
 
 RECORD = "campaign_run.json"
 TAIL_LINES = 20
-NIS_NOTE = ("NIS is not recorded: the run folder holds no innovations (eval/targets.csv has no NIS column), "
-            "so no NIS band is computed")
+NIS_NOTE = ("per target (entry 'nis'): every bearing update's normalised innovation square (2 dof), from "
+            "nav/targets.csv's cumulative bearing_nis_sum / bearing_updates; at each step the updates of all runs "
+            "are pooled: mean NIS = sum / N against the two-sided 95 % band chi2(2N) / N")
+NIS_MISSING = ("NIS is not recorded in these run folders (nav/targets.csv has no bearing_nis_sum column: made "
+               "before issue 15), so no NIS band is computed")
 
 
 _SAY = threading.Lock()
@@ -441,7 +444,7 @@ def summarise(out, seeds, meta, failures):
     per_seed = {}  # (obs, tgt) -> {seed: summary.json target entry}
     period = None
     name = None
-    nis_columns = set()
+    nis = {}  # (obs, tgt) -> list over runs of {t: (cumulative nis sum, cumulative updates)}
     for s in seeds:
         d = os.path.join(out, f"seed_{s}")
         summ = read_summary(d)
@@ -453,19 +456,12 @@ def summarise(out, seeds, meta, failures):
                 per_seed.setdefault((obs, tgt), {})[s] = t
         for k, v in target_nees(d).items():
             nees.setdefault(k, []).append(v)
-        ev = os.path.join(d, "eval")
-        for fn in sorted(os.listdir(ev)) if os.path.isdir(ev) else []:
-            if fn.endswith(".csv"):
-                with open(os.path.join(ev, fn)) as f:
-                    header = f.readline().strip().split(",")
-                nis_columns |= {f"eval/{fn}:{c}" for c in header if "nis" in c.lower()}
+        for k, v in target_nis(d).items():
+            nis.setdefault(k, []).append(v)
     R = len(seeds)
     out_json = {"scenario": name, **meta, "seeds": seeds, "runs": R,
                 "band_95": [float(chi2.ppf(0.025, 6 * R) / R), float(chi2.ppf(0.975, 6 * R) / R)] if R else None,
-                "targets": {}, "nis": None,
-                "nis_note": NIS_NOTE if not nis_columns else
-                ("the run folders have " + ", ".join(sorted(nis_columns)) + " but this campaign.py does not "
-                 "evaluate NIS yet"),
+                "targets": {}, "nis_note": NIS_NOTE if nis else NIS_MISSING,
                 "failures": failures}
     for key in sorted(set(nees) | set(per_seed)):
         obs, tgt = key
@@ -503,6 +499,7 @@ def summarise(out, seeds, meta, failures):
                     "after_median_orbit": start_med, "steps_after_median": int(sel_med.sum()),
                     "frac_inside_band_after_median": frac_med})
                 plot_nees(out, obs, tgt, orb, avg, lo, hi, start, start_med, frac, frac_med, Rt)
+                entry["nis"] = nis_entry(nis.get(key, []), t0, period or 5700.0, start, start_med)
         entry["convergence_orbits"] = cs
         ps = per_seed.get(key, {})
         tg = [ps.get(s, {}) for s in seeds]
@@ -526,6 +523,35 @@ def summarise(out, seeds, meta, failures):
         plot_errors(out, obs, tgt, seeds, tg)
         out_json["targets"][f"{obs}/{tgt}"] = entry
     return out_json
+
+
+def nis_entry(runs, t0, period_s, start, start_med):
+    """Bearing NIS over the campaign: at every step, the updates of that step in every run pooled (sum S of
+    their NIS, count N; each 2 dof), the step inside the 95 % band when chi2(2N).ppf(.025) <= S <= .ppf(.975);
+    fractions of the steps with updates after the latest and the median convergence. None without data."""
+    from scipy.stats import chi2
+    if not runs:
+        return None
+    S, N = {}, {}
+    for r in runs:
+        prev = (0.0, 0)
+        for t in sorted(r):
+            s, n = r[t]
+            if n > prev[1]:
+                S[t] = S.get(t, 0.0) + (s - prev[0])
+                N[t] = N.get(t, 0) + (n - prev[1])
+            prev = (s, n)
+    out = {}
+    for label, after in (("after_latest_convergence", start), ("after_median_convergence", start_med)):
+        steps = [t for t in sorted(N) if (t - t0) * 1e-9 / period_s >= after]
+        if not steps:
+            out[label] = None
+            continue
+        inside = [chi2.ppf(0.025, 2 * N[t]) <= S[t] <= chi2.ppf(0.975, 2 * N[t]) for t in steps]
+        tot_s, tot_n = sum(S[t] for t in steps), sum(N[t] for t in steps)
+        out[label] = {"after_orbit": float(after), "steps": len(steps), "updates": int(tot_n),
+                      "mean_nis": tot_s / tot_n, "frac_inside_band": sum(inside) / len(inside)}
+    return out
 
 
 def _safe(name):
@@ -601,13 +627,15 @@ def print_table(s, out):
           f"({len(s['failures'])} failed), band 95 % "
           + (f"[{s['band_95'][0]:.2f}, {s['band_95'][1]:.2f}]" if s["band_95"] else "-"))
     print(f"{'target':<10} {'inside latest':>13} {'inside median':>13} {'mean NEES':>9} "
-          f"{'dl err % med':>12} {'(max)':>8} {'conv med':>8} {'(max)':>6} {'never':>5}")
+          f"{'dl err % med':>12} {'(max)':>8} {'conv med':>8} {'(max)':>6} {'never':>5} {'mean NIS':>8} {'NIS inside':>10}")
     for k, t in s["targets"].items():
         fr, frm = t.get("frac_inside_band"), t.get("frac_inside_band_after_median")
+        nis = (t.get("nis") or {}).get("after_latest_convergence")
         print(f"{k:<10} {f(fr and 100 * fr, '{:.1f} %'):>13} {f(frm and 100 * frm, '{:.1f} %'):>13} "
               f"{f(t.get('mean_nees_after'), '{:.2f}'):>9} {f(t['final_dlambda_error_pct']['median'], '{:.3f}'):>12} "
               f"{f(t['final_dlambda_error_pct']['max'], '{:.3f}'):>8} {f(t['convergence']['median_orbits'], '{:.2f}'):>8} "
-              f"{f(t['convergence']['max_orbits'], '{:.2f}'):>6} {t['convergence']['never_converged']:>5}")
+              f"{f(t['convergence']['max_orbits'], '{:.2f}'):>6} {t['convergence']['never_converged']:>5} "
+              f"{f(nis and nis['mean_nis'], '{:.2f}'):>8} {f(nis and 100 * nis['frac_inside_band'], '{:.1f} %'):>10}")
     for fl in s["failures"]:
         print(f"failed: seed {fl['seed']}: {fl['problem']} ({os.path.join(out, fl['log'])})")
     print(f"summary: {os.path.join(out, 'campaign_summary.json')}")

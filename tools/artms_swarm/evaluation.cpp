@@ -36,6 +36,8 @@ struct Row {
   astro::Mat6 P;
   bool full_P = false;
   long local = 0, remote = 0;
+  double nis_sum = 0.0;  // cumulative bearing NIS (nav/targets.csv bearing_nis_sum)
+  long nis_n = 0;
 };
 
 constexpr const char* kRoeNames[6] = {"da", "dlambda", "dex", "dey", "dix", "diy"};
@@ -105,6 +107,10 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
         }
         r.local = tab.integer(k, "local_measurements");
         r.remote = tab.integer(k, "remote_measurements");
+        if (tab.has("bearing_nis_sum")) {
+          r.nis_sum = tab.number(k, "bearing_nis_sum");
+          r.nis_n = tab.integer(k, "bearing_updates");
+        }
         if (tab.has("covariance_upper")) {
           const auto v = io::split_fields(tab.text(k, "covariance_upper"), ' ');
           if (v.size() != 21) {
@@ -130,7 +136,8 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
   for (const char* n : kRoeNames) out << ",sigma_a_" << n << "_m";
   out << ",local_measurements,remote_measurements,health,nees\n";
   struct Series {
-    std::vector<double> t_s, range, nees;
+    std::vector<double> t_s, range, nees, nis_sum;
+    std::vector<long> nis_n;
     std::vector<astro::Vec6> err, sig;
     long local = 0, remote = 0;
   };
@@ -157,6 +164,8 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     s.err.push_back(err);
     s.sig.push_back(sig);
     s.nees.push_back(nees);
+    s.nis_sum.push_back(r.nis_sum);
+    s.nis_n.push_back(r.nis_n);
     s.local = r.local;
     s.remote = r.remote;
     char buf[160];
@@ -207,6 +216,15 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     }
     j["nees_mean"] = nees_n ? nlohmann::json(nees_sum / static_cast<double>(nees_n)) : nlohmann::json(nullptr);
     j["nees_within_95"] = nees_n ? nlohmann::json(static_cast<double>(nees_in) / static_cast<double>(nees_n)) : nlohmann::json(nullptr);
+    // Bearing NIS after convergence: the mean of the 2-dof normalised
+    // innovation squares of every bearing update from `from` on (2 when
+    // the filter's predicted bearing covariance is honest).
+    const double nis0 = from > 0 ? s.nis_sum[from - 1] : 0.0;
+    const long nis_n0 = from > 0 ? s.nis_n[from - 1] : 0;
+    const long nis_updates = s.nis_n.back() - nis_n0;
+    j["nis_mean"] = nis_updates > 0 ? nlohmann::json((s.nis_sum.back() - nis0) / static_cast<double>(nis_updates))
+                                    : nlohmann::json(nullptr);
+    j["nis_updates"] = nis_updates;
     j["local_measurements"] = s.local;
     j["remote_measurements"] = s.remote;
     summary["observers"][key.first]["targets"][key.second] = j;

@@ -84,6 +84,8 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   if (fuse_remote_) opt_.max_lag_s = std::max(opt_.max_lag_s, opt_.remote_hold_s);
   for (const auto& a : up.apriori) target_ids_.push_back(a.target);
   local_.assign(target_ids_.size(), 0);
+  nis_sum_.assign(target_ids_.size(), 0.0);
+  nis_n_.assign(target_ids_.size(), 0);
   remote_.assign(target_ids_.size(), 0);
   sod_opt_ = sod_options(up.tuning.sod);
 }
@@ -187,6 +189,12 @@ void Navigator::add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u
   direct_.emplace_back(t, u_eci);
 }
 
+void Navigator::record_nis(int k, const sod::UpdateSummary& s) {
+  if (k < 0 || !std::isfinite(s.nis) || (!s.usable && !s.gated)) return;
+  nis_sum_[static_cast<std::size_t>(k)] += s.nis;
+  ++nis_n_[static_cast<std::size_t>(k)];
+}
+
 bool Navigator::direct_assigned(astro::TimeTT t, const Eigen::Vector3d& u_eci) const {
   return std::any_of(direct_.begin(), direct_.end(), [&](const auto& d) {
     // SAMUS carries the frame's time tag unchanged (TimeTT): the same frame.
@@ -257,7 +265,9 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
     if (blended(f, e.track, e.t)) return;
     const auto m = sod::bearing_measurement_from_unit_eci(e.t, e.track, e.u_eci, bearing_sigma(e.imp_sigma_rad),
                                                           e.q_cam_from_eci.toRotationMatrix());
-    if (f.update_bearing(m).usable) ++local_[static_cast<std::size_t>(e.track)];
+    const auto s = f.update_bearing(m);
+    record_nis(e.track, s);
+    if (s.usable) ++local_[static_cast<std::size_t>(e.track)];
   } else {
     auto& as = tracks_[e.track];
     // A track that SAMUS joined across a gap since it was bound may have
@@ -319,6 +329,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
     const Eigen::Matrix3d R_v_from_eci = e.q_cam_from_eci.toRotationMatrix();
     const auto m = sod::bearing_measurement_from_unit_eci(e.t, as.target, e.u_eci, sigma, R_v_from_eci);
     const auto s = f.update_bearing(m);
+    record_nis(as.target, s);
     if (s.usable) ++local_[static_cast<std::size_t>(as.target)];
     // A bound track whose bearings the gate keeps refusing has most likely
     // swapped to another object (two targets crossing a few pixels apart):
@@ -395,9 +406,11 @@ void Navigator::process_remote(const std::vector<Event>& group) {
       continue;
     }
     const int to = bodies[static_cast<std::size_t>(assigned)];
-    if (f.update_line_of_sight(measurement(group[j], to)).usable) {
+    const int body = to >= 0 ? to : from;  // the target whose relative orbit it measures
+    const auto su = f.update_line_of_sight(measurement(group[j], to));
+    if (body >= 0) record_nis(body, su);
+    if (su.usable) {
       ++remote_assigned_;
-      const int body = to >= 0 ? to : from;  // the target whose relative orbit it measures
       if (body >= 0) ++remote_[static_cast<std::size_t>(body)];
       LinkWatch& w = links_[sender];
       const Event& e = group[j];
@@ -520,6 +533,8 @@ NavReport Navigator::report(astro::TimeTT t) const {
     tr.P_roe = f.covariance().block<6, 6>(off, off);
     tr.local_measurements = local_[k];
     tr.remote_measurements = remote_[k];
+    tr.bearing_nis_sum = nis_sum_[k];
+    tr.bearing_updates = nis_n_[k];
     r.targets.push_back(tr);
   }
   return r;

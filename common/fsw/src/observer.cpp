@@ -399,6 +399,8 @@ bus::NavTelemetry Observer::navigation(astro::TimeTT t) const {
       for (int i = 0; i < 36; ++i) e.covariance_roe[static_cast<std::size_t>(i)] = tr.P_roe.data()[i];
       e.local_measurements = tr.local_measurements;
       e.remote_measurements = tr.remote_measurements;
+      e.bearing_nis_sum = tr.bearing_nis_sum;
+      e.bearing_updates = tr.bearing_updates;
       nav.targets.push_back(std::move(e));
     }
   } else if (last_fix_) {

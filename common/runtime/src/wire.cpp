@@ -303,6 +303,8 @@ bus::NavTelemetry from_wire(const artms_msg_NavTelemetry& m) {
     copy(e.covariance_roe, t.covariance_roe);
     t.local_measurements = e.local_measurements;
     t.remote_measurements = e.remote_measurements;
+    t.bearing_nis_sum = e.bearing_nis_sum;
+    t.bearing_updates = e.bearing_updates;
     n.targets.push_back(t);
   }
   n.isl_sent = m.isl_sent;
@@ -329,6 +331,8 @@ void write(dds::Writer<artms_msg_NavTelemetry>& w, const bus::NavTelemetry& n) {
     copy(t.covariance_roe, est[k].covariance_roe);
     est[k].local_measurements = t.local_measurements;
     est[k].remote_measurements = t.remote_measurements;
+    est[k].bearing_nis_sum = t.bearing_nis_sum;
+    est[k].bearing_updates = t.bearing_updates;
   }
   view(m.targets, est);
   m.isl_sent = n.isl_sent;

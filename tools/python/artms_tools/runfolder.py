@@ -140,5 +140,19 @@ def target_nees(run_dir):
     return out
 
 
+def target_nis(run_dir):
+    """Cumulative bearing NIS of nav/targets.csv: {(observer, target): {t_tt_ns: (nis_sum, updates)}};
+    empty when the run folder predates the bearing_nis_sum column."""
+    path = os.path.join(run_dir, "nav", "targets.csv")
+    t = read_csv(path, required=("observer", "target", "t_tt_ns"))
+    if "bearing_nis_sum" not in t.columns:
+        return {}
+    out = {}
+    for r in t:
+        out.setdefault((r["observer"], r["target"]), {})[r.int("t_tt_ns")] = (r.float("bearing_nis_sum"),
+                                                                               r.int("bearing_updates"))
+    return out
+
+
 def finite(v):
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)

@@ -195,6 +195,8 @@ struct TargetEstimate {
   std::array<double, 6> roe{};
   std::array<double, 36> covariance_roe{};
   std::uint32_t local_measurements = 0, remote_measurements = 0;
+  double bearing_nis_sum = 0.0;      // sum of the NIS of every bearing update so far
+  std::uint32_t bearing_updates = 0;  // how many
 };
 
 struct NavTelemetry {

@@ -115,6 +115,11 @@ struct TargetReport {
   astro::Mat6 P_roe = astro::Mat6::Zero();
   std::uint32_t local_measurements = 0;
   std::uint32_t remote_measurements = 0;
+  // Every bearing update of this target so far (local and remote, fused or
+  // refused by the gate): the sum of their normalised innovation squares
+  // (2 degrees of freedom each) and how many (NIS consistency, summary.json).
+  double bearing_nis_sum = 0.0;
+  std::uint32_t bearing_updates = 0;
 };
 
 struct NavReport {
@@ -269,6 +274,9 @@ class Navigator {
   const dynamics::GveRk4Propagator onboard_;
   std::size_t remote_assigned_ = 0, remote_unassigned_ = 0, remote_late_ = 0;
   std::vector<std::uint32_t> remote_;
+  std::vector<double> nis_sum_;      // per target: sum of bearing-update NIS
+  std::vector<std::uint32_t> nis_n_;  // per target: bearing updates counted
+  void record_nis(int k, const sod::UpdateSummary& s);
   std::vector<std::string> messages_;
 
   static Event bearing_event(astro::TimeTT t, EventKind kind, int track, const Eigen::Vector3d& u_eci,
