@@ -48,7 +48,10 @@ InProcessResult run_in_process(const config::Scenario& sc, const fs::path& dir,
     std::vector<fsw::ObserverInputs> next(observers.size());
     std::vector<bus::IslBroadcast> broadcasts;
     for (std::int64_t k = 0; k <= truth.steps() + 1; ++k) {
-      if (stop()) throw std::runtime_error("stop requested");
+      if (stop()) {
+        current = "launcher";  // nobody failed: the run was interrupted
+        throw std::runtime_error("stop requested");
+      }
       const bus::Tick tick = truth.tick(k);
       std::vector<fsw::ObserverInputs> in = std::move(next);
       next.assign(observers.size(), {});

@@ -150,7 +150,14 @@ std::string hms(double s) {
 std::optional<io::CsvTable> read_table(const fs::path& path, nlohmann::json& j) {
   if (!fs::exists(path)) return std::nullopt;
   try {
-    return io::CsvTable::read(path.string());
+    auto t = io::CsvTable::read(path.string());
+    if (t.truncated_line() > 0) {
+      const std::string what = path.string() + ":" + std::to_string(t.truncated_line()) +
+                               ": unfinished last line left out (a process stopped while writing it)";
+      std::fprintf(stderr, "artms-swarm: %s\n", what.c_str());
+      j["evaluation_errors"].push_back(what);
+    }
+    return t;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "artms-swarm: %s\n", e.what());
     j["evaluation_errors"].push_back(e.what());

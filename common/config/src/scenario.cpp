@@ -275,6 +275,9 @@ std::optional<std::string> read_string(Ctx& ctx, const Val& v, std::string_view 
   return v.node.Scalar();
 }
 
+// Spacecraft ids: at most 20 characters (see the id check below).
+constexpr std::size_t kMaxSpacecraftIdChars = 20;
+
 // A string matching [A-Za-z0-9_-]+ (spacecraft ids, camera model stems).
 bool is_identifier(std::string_view s, bool allow_dot = false) {
   if (s.empty()) return false;
@@ -822,6 +825,13 @@ class Parser {
       std::optional<std::string> id;
       if (const Val* idv = m.require("id", "a spacecraft id such as SV4")) {
         id = read_identifier(ctx_, *idv, "a spacecraft id");
+        // The wire bounds ids to 31 characters and the longest name built
+        // from one ("observer-<id>", "<id>-target-<k>") must fit.
+        if (id && id->size() > kMaxSpacecraftIdChars) {
+          ctx_.error(*idv, "expected a spacecraft id of at most " + std::to_string(kMaxSpacecraftIdChars) +
+                               " characters, got " + std::to_string(id->size()) + " (" + quote(*id) + ")");
+          id.reset();
+        }
         if (id) {
           if (const auto it = sc_loc_.find(*id); it != sc_loc_.end()) {
             ctx_.error(*idv, "duplicate spacecraft id " + quote(*id) + " (first defined at line " +

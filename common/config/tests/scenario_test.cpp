@@ -287,6 +287,19 @@ TEST(Scenario, GravityDegreeAloneMeansSquareField) {
   EXPECT_EQ(s.force_model.gravity_order, 20);
 }
 
+TEST(ScenarioValidation, SpacecraftIdsAreAtMost20Characters) {
+  std::string text = kValid;
+  const auto at = text.find("id: SV2");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, 7, "id: SV2_with_a_very_long_name");
+  const auto diags = validate_scenario_file(write_file("long_id.yaml", text));
+  bool found = false;
+  for (const auto& d : diags) {
+    found = found || d.message.find("at most 20 characters, got 25") != std::string::npos;
+  }
+  EXPECT_TRUE(found) << dump(diags);
+}
+
 TEST(ScenarioValidation, Modes2And4AreRefusedUntilTheyExist) {
   // Mode 4 turns GNSS off by default: the only error is the mode itself.
   for (const char* mode : {"2", "4"}) {

@@ -81,7 +81,7 @@ Observer::Observer(ObserverSetup setup, std::string source)
       isl_repeat_window_s_(remote_bearing_max_age_s(up_) -
                            (up_.isl_period_s + up_.isl_latency_s + 2.0 * up_.step_s)) {
   if (!setup_.forces) throw std::invalid_argument("fsw::Observer: no onboard force model");
-  if (up_.camera_calibration.present() && !setup_.star_catalog.empty()) {
+  if (up_.camera_calibration.present() && !up_.star_catalog_file.empty()) {
     const auto& c = up_.camera_calibration;
     K_ = intrinsics_from(c);
     catalog_ = imp::StarIdCatalog::build(setup_.star_catalog, 2.0 * K_.half_diagonal_fov_rad());

@@ -39,7 +39,7 @@ namespace artms::fsw {
 // the truth's). load_observer_setup reads them from files.
 struct ObserverSetup {
   config::ObserverUplink uplink;
-  std::vector<imp::CatalogStar> star_catalog;  // empty: IMP off
+  std::vector<imp::CatalogStar> star_catalog;  // the one uplink.star_catalog_file names (IMP off when none is)
   std::shared_ptr<const dynamics::ForceModel> forces;
 };
 // Reads the uplink (JSON), the star catalog it names (beside it) and the

@@ -2,7 +2,9 @@
 // name: one reader for every tool. No quoting (the run folder has none).
 // A row whose field count differs from the header's is an error naming the
 // file and line, never silently dropped; so is an unknown column or a field
-// that is not a number where one is asked for.
+// that is not a number where one is asked for. One exception: an unfinished
+// last line (no newline: a process killed while writing) is left out and
+// named by truncated_line().
 #pragma once
 
 #include <cstdint>
@@ -45,6 +47,10 @@ class CsvTable {
       ++lineno;
       if (line.empty()) continue;
       auto f = split_fields(line);
+      if (f.size() != t.header_.size() && in.eof()) {
+        t.truncated_line_ = lineno;
+        break;
+      }
       if (f.size() != t.header_.size()) {
         throw std::runtime_error(path + ":" + std::to_string(lineno) + ": " + std::to_string(f.size()) +
                                  " fields, the header has " + std::to_string(t.header_.size()));
@@ -61,6 +67,8 @@ class CsvTable {
   [[nodiscard]] const std::vector<std::string>& header() const { return header_; }
   [[nodiscard]] const std::string& path() const { return path_; }
   [[nodiscard]] int line(std::size_t row) const { return lines_.at(row); }
+  // The unfinished last line left out (0: none).
+  [[nodiscard]] int truncated_line() const { return truncated_line_; }
   // Throws naming the file when the column does not exist.
   [[nodiscard]] std::size_t column(const std::string& name) const {
     const auto it = column_.find(name);
@@ -97,6 +105,7 @@ class CsvTable {
   std::map<std::string, std::size_t> column_;
   std::vector<std::vector<std::string>> rows_;
   std::vector<int> lines_;
+  int truncated_line_ = 0;
 };
 
 }  // namespace artms::io
