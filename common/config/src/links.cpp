@@ -24,4 +24,9 @@ std::vector<std::pair<std::string, std::string>> isl_links(const Scenario& s) {
   return out;
 }
 
+bool isl_link_up_at_epoch(const Scenario& s, const std::string& from, const std::string& to) {
+  const double range_m = (s.initial_state_eci(from).r_m - s.initial_state_eci(to).r_m).norm();
+  return isl_link_down_reason(s, from, to, s.epoch, range_m).empty();
+}
+
 }  // namespace artms::config

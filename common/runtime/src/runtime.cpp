@@ -1,4 +1,5 @@
 #include "artms/runtime/runtime.hpp"
+#include "artms/runtime/wire.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -75,8 +76,7 @@ Topology topology(const config::Scenario& s) {
       {"isl_outcome", 1},               // recorder
   };
   for (const auto& [from, to] : config::isl_links(s)) {
-    const double range = (s.initial_state_eci(from).r_m - s.initial_state_eci(to).r_m).norm();
-    t.isl_relay_readers[from + "->" + to] = config::isl_link_down_reason(s, from, to, s.epoch, range).empty() ? 1 : 0;
+    t.isl_relay_readers[from + "->" + to] = config::isl_link_up_at_epoch(s, from, to) ? 1 : 0;
   }
   return t;
 }
@@ -138,24 +138,13 @@ EventLog::EventLog(const dds::Participant& p, const TopicSet& topics, std::strin
     : source_(std::move(source)), writer_(p, topics.event, data_qos()) {}
 
 void EventLog::emit(std::int64_t t, int severity, const std::string& text) {
-  artms_msg_Event e{};
-  dds::copy_string(e.source, sizeof e.source, source_);
-  e.t_tt_ns = t;
-  e.severity = static_cast<uint8_t>(severity);
-  dds::copy_string(e.text, sizeof e.text, text);
-  writer_.write(e);
-  static const char* kLevel[] = {"info", "warning", "error"};
-  std::fprintf(stderr, "[%s] %s: %s\n", source_.c_str(), kLevel[severity], text.c_str());
+  publish({{source_, t, static_cast<bus::Severity>(severity), text}});
 }
 
 void EventLog::publish(const std::vector<bus::Event>& events) {
+  // The wire bounds the strings (runtime::write); stderr shows them whole.
   for (const auto& e : events) {
-    artms_msg_Event m{};
-    dds::copy_string(m.source, sizeof m.source, e.source);
-    m.t_tt_ns = e.t_tt_ns;
-    m.severity = static_cast<uint8_t>(e.severity);
-    dds::copy_string(m.text, sizeof m.text, e.text);
-    writer_.write(m);
+    write(writer_, e);
     std::fprintf(stderr, "[%s] %s: %s\n", e.source.c_str(), bus::to_string(e.severity), e.text.c_str());
   }
 }

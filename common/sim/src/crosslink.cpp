@@ -18,8 +18,7 @@ Crosslink::Crosslink(const config::Scenario& sc, std::string source)
     l.from = from;
     l.to = to;
     // Up at the epoch (from the initial states): its writer starts matched.
-    const double range_m = (sc.initial_state_eci(from).r_m - sc.initial_state_eci(to).r_m).norm();
-    l.up_at_epoch = config::isl_link_down_reason(sc, from, to, sc.epoch, range_m).empty();
+    l.up_at_epoch = config::isl_link_up_at_epoch(sc, from, to);
     links_.push_back(l);
     // Deterministic loss draws: scenario seed + link (indices of its ends).
     std::seed_seq seq{static_cast<std::uint64_t>(sc.seed), std::uint64_t{0x15c11}, std::uint64_t{index[from]},

@@ -17,6 +17,8 @@ namespace artms::config {
 // a link state.
 std::string isl_link_down_reason(const Scenario& s, const std::string& from, const std::string& to, astro::TimeTT t,
                                  double range_m);
+// Is the link up at the scenario epoch (range from the initial states)?
+bool isl_link_up_at_epoch(const Scenario& s, const std::string& from, const std::string& to);
 // Every directed link between observers, in scenario order (from-major).
 std::vector<std::pair<std::string, std::string>> isl_links(const Scenario& s);
 
