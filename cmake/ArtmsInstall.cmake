@@ -39,7 +39,7 @@ if(EXISTS ${CMAKE_SOURCE_DIR}/tools/python/artms_tools)
 endif()
 
 # The onboard stack (fsw::Observer and what it links), exported as artms::<name>.
-set(ARTMS_EXPORTED_LIBRARIES artms_astro artms_dynamics artms_io artms_config artms_imp artms_sod
+set(ARTMS_EXPORTED_LIBRARIES artms_astro artms_dynamics artms_io artms_config artms_imp artms_sod artms_bod
   artms_bus artms_fsw)
 foreach(lib IN LISTS ARTMS_EXPORTED_LIBRARIES)
   string(REGEX REPLACE "^artms_" "" name ${lib})

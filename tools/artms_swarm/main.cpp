@@ -3,6 +3,7 @@
 // observer and the recorder; supervises them (a child that dies is named, the
 // others are stopped cleanly, the exit status is non-zero, no orphans); shows
 // progress; writes summary.json and timing.json into the run folder.
+#include <algorithm>
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/prctl.h>
@@ -59,6 +60,7 @@ void add_ground_apriori(const artms::config::Scenario& sc, const artms::config::
   up.apriori_age_days = o.apriori.age_days;
   for (const auto& s : sc.spacecraft) {
     if (s.id == o.spacecraft) continue;
+    if (!o.targets.empty() && std::find(o.targets.begin(), o.targets.end(), s.id) == o.targets.end()) continue;
     const astro::Roe truth = astro::roe_from_qns(obs, astro::qns_from_cartesian(sc.initial_state_eci(s.id)));
     config::TargetApriori t;
     t.target = s.id;

@@ -1025,7 +1025,7 @@ class Parser {
     }
     std::map<std::string, Loc> seen;
     for (const Val& item : *list) {
-      Map m(ctx_, item, {"spacecraft", "mode", "camera", "gnss", "apriori"});
+      Map m(ctx_, item, {"spacecraft", "mode", "camera", "gnss", "apriori", "targets"});
       if (!m.ok()) continue;
       ObserverConfig o;
       ObsInfo info;
@@ -1059,6 +1059,19 @@ class Parser {
           number_field(ctx_, am, "age_days", o.apriori.age_days, closed(0.0, 365.0), "days");
         }
       }
+      if (const Val* tv = m.find("targets")) {
+        if (const auto tl = items(ctx_, *tv, "targets")) {
+          for (const Val& t : *tl) {
+            if (auto id = read_identifier(ctx_, t, "a spacecraft id")) {
+              check_spacecraft_ref(*id, t, "target");
+              if (*id == o.spacecraft) ctx_.error(t, "an observer is not its own target: " + quote(*id));
+              else if (std::find(o.targets.begin(), o.targets.end(), *id) != o.targets.end())
+                ctx_.error(t, "duplicate target " + quote(*id));
+              else o.targets.push_back(*id);
+            }
+          }
+        }
+      }
       // Mode 4 flies without GNSS: off unless the file says otherwise (an error).
       if (o.mode == 4 && !info.gnss_explicit) o.gnss.enabled = false;
       if (ok) {
@@ -1072,13 +1085,10 @@ class Parser {
     for (std::size_t k = 0; k < s_.observers.size(); ++k) {
       const auto& o = s_.observers[k];
       const auto& info = obs_info_[k];
-      // Modes 2 (BOD, autonomous initialisation) and 4 (angles only, no
-      // GNSS) are not in the emulator yet (issues 16 and 18): a scenario
-      // asking for them is refused rather than run as mode 0.
-      if (o.mode == 2 || o.mode == 4) {
-        ctx_.error(info.mode, "navigation mode " + std::to_string(o.mode) +
-                                  (o.mode == 2 ? " (BOD, autonomous initialisation)" : " (angles only, no GNSS)") +
-                                  " is not implemented yet: expected 0, 1 or 3");
+      // Mode 4 (angles only, no GNSS) is not in the emulator yet (issue
+      // 18): a scenario asking for it is refused rather than run as mode 0.
+      if (o.mode == 4) {
+        ctx_.error(info.mode, "navigation mode 4 (angles only, no GNSS) is not implemented yet: expected 0, 1, 2 or 3");
       }
       if (o.mode == 4 && o.gnss.enabled) {
         ctx_.error(info.gnss_enabled,
@@ -1171,11 +1181,32 @@ class Parser {
       }
     }
     if (const Val* bv = m.find("bod")) {
-      Map bm(ctx_, *bv, {"period", "samples", "max_iterations"});
+      Map bm(ctx_, *bv,
+             {"enabled", "period", "samples", "max_iterations", "range_min_m", "range_max_m", "min_measurements",
+              "max_measurements", "batch_orbits", "max_sigma_range_fraction", "max_residual_arcsec", "check_chi2"});
       if (bm.ok()) {
+        bool_field(ctx_, bm, "enabled", t.bod.enabled);
         duration_field(ctx_, bm, "period", t.bod.period_s, false);
-        int_field(ctx_, bm, "samples", t.bod.samples, 1, kBig);
+        int_field(ctx_, bm, "samples", t.bod.samples, 5, kBig);
         int_field(ctx_, bm, "max_iterations", t.bod.max_iterations, 1, kBig);
+        const bool lo = number_field(ctx_, bm, "range_min_m", t.bod.range_min_m, positive(), "m");
+        const bool hi = number_field(ctx_, bm, "range_max_m", t.bod.range_max_m, positive(), "m");
+        if (lo && hi && !(t.bod.range_max_m > t.bod.range_min_m)) {
+          ctx_.error(bm.find("range_max_m") ? *bm.find("range_max_m") : bm.self(),
+                     "out of range: expected range_max_m > range_min_m, got " + fmt_num(t.bod.range_max_m) + " and " +
+                         fmt_num(t.bod.range_min_m));
+        }
+        const bool mn = int_field(ctx_, bm, "min_measurements", t.bod.min_measurements, 7, kBig);
+        const bool mx = int_field(ctx_, bm, "max_measurements", t.bod.max_measurements, 7, kBig);
+        if (mn && mx && t.bod.max_measurements < t.bod.min_measurements) {
+          ctx_.error(bm.find("max_measurements") ? *bm.find("max_measurements") : bm.self(),
+                     "out of range: expected max_measurements >= min_measurements, got " +
+                         std::to_string(t.bod.max_measurements) + " and " + std::to_string(t.bod.min_measurements));
+        }
+        number_field(ctx_, bm, "batch_orbits", t.bod.batch_orbits, closed(0.25, 10.0), "orbits");
+        number_field(ctx_, bm, "max_sigma_range_fraction", t.bod.max_sigma_range_fraction, positive());
+        number_field(ctx_, bm, "max_residual_arcsec", t.bod.max_residual_arcsec, positive(), "arcsec");
+        number_field(ctx_, bm, "check_chi2", t.bod.check_chi2, positive());
       }
     }
     if (const Val* sv = m.find("sod")) {

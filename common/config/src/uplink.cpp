@@ -65,7 +65,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
          {{"enabled", o.gnss.enabled}, {"period_s", o.gnss.period_s},
           {"sigma_position_m", o.gnss.sigma_position_m},
           {"sigma_velocity_mps", o.gnss.sigma_velocity_mps}, {"outages_tt_ns", outages}}},
-        {"apriori_age_days", o.apriori.age_days}}},
+        {"apriori_age_days", o.apriori.age_days},
+        {"targets", o.targets}}},
       {"tuning",
        {{"imp",
          {{"detection_sigma", u.tuning.imp.detection_sigma},
@@ -74,8 +75,13 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"dbscan_frames", u.tuning.imp.dbscan_frames},
           {"aided_detection_snr", u.tuning.imp.aided_detection_snr}}},
         {"bod",
-         {{"period_s", u.tuning.bod.period_s}, {"samples", u.tuning.bod.samples},
-          {"max_iterations", u.tuning.bod.max_iterations}}},
+         {{"enabled", u.tuning.bod.enabled}, {"period_s", u.tuning.bod.period_s},
+          {"samples", u.tuning.bod.samples}, {"max_iterations", u.tuning.bod.max_iterations},
+          {"range_min_m", u.tuning.bod.range_min_m}, {"range_max_m", u.tuning.bod.range_max_m},
+          {"min_measurements", u.tuning.bod.min_measurements}, {"max_measurements", u.tuning.bod.max_measurements},
+          {"batch_orbits", u.tuning.bod.batch_orbits},
+          {"max_sigma_range_fraction", u.tuning.bod.max_sigma_range_fraction},
+          {"max_residual_arcsec", u.tuning.bod.max_residual_arcsec}, {"check_chi2", u.tuning.bod.check_chi2}}},
         {"sod",
          {{"period_s", u.tuning.sod.period_s},
           {"bearing_sigma_arcsec", u.tuning.sod.bearing_sigma_arcsec},
@@ -152,15 +158,26 @@ ObserverUplink read_uplink(const std::string& path) {
           {astro::TimeTT{w.at(0).get<std::int64_t>()}, astro::TimeTT{w.at(1).get<std::int64_t>()}});
     }
     u.observer.apriori.age_days = o.at("apriori_age_days").get<double>();
+    u.observer.targets = o.at("targets").get<std::vector<std::string>>();
     const auto& t = j.at("tuning");
     u.tuning.imp.detection_sigma = t.at("imp").at("detection_sigma").get<double>();
     u.tuning.imp.dbscan_min_points = t.at("imp").at("dbscan_min_points").get<int>();
     u.tuning.imp.dbscan_radius_px = t.at("imp").at("dbscan_radius_px").get<double>();
     u.tuning.imp.dbscan_frames = t.at("imp").at("dbscan_frames").get<int>();
     u.tuning.imp.aided_detection_snr = t.at("imp").at("aided_detection_snr").get<double>();
-    u.tuning.bod.period_s = t.at("bod").at("period_s").get<double>();
-    u.tuning.bod.samples = t.at("bod").at("samples").get<int>();
-    u.tuning.bod.max_iterations = t.at("bod").at("max_iterations").get<int>();
+    const auto& bod = t.at("bod");
+    u.tuning.bod.enabled = bod.at("enabled").get<bool>();
+    u.tuning.bod.period_s = bod.at("period_s").get<double>();
+    u.tuning.bod.samples = bod.at("samples").get<int>();
+    u.tuning.bod.max_iterations = bod.at("max_iterations").get<int>();
+    u.tuning.bod.range_min_m = bod.at("range_min_m").get<double>();
+    u.tuning.bod.range_max_m = bod.at("range_max_m").get<double>();
+    u.tuning.bod.min_measurements = bod.at("min_measurements").get<int>();
+    u.tuning.bod.max_measurements = bod.at("max_measurements").get<int>();
+    u.tuning.bod.batch_orbits = bod.at("batch_orbits").get<double>();
+    u.tuning.bod.max_sigma_range_fraction = bod.at("max_sigma_range_fraction").get<double>();
+    u.tuning.bod.max_residual_arcsec = bod.at("max_residual_arcsec").get<double>();
+    u.tuning.bod.check_chi2 = bod.at("check_chi2").get<double>();
     const auto& sod = t.at("sod");
     u.tuning.sod.period_s = sod.at("period_s").get<double>();
     u.tuning.sod.bearing_sigma_arcsec = sod.at("bearing_sigma_arcsec").get<double>();

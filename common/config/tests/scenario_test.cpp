@@ -300,19 +300,35 @@ TEST(ScenarioValidation, SpacecraftIdsAreAtMost20Characters) {
   EXPECT_TRUE(found) << dump(diags);
 }
 
-TEST(ScenarioValidation, Modes2And4AreRefusedUntilTheyExist) {
+TEST(ScenarioValidation, Mode4IsRefusedUntilItExists) {
   // Mode 4 turns GNSS off by default: the only error is the mode itself.
-  for (const char* mode : {"2", "4"}) {
-    const std::string path = write_file(std::string("mode") + mode + ".yaml",
-                                        kValid + "    mode: " + mode + "\n  - spacecraft: SV2\n    mode: 3\n");
-    const auto diags = validate_scenario_file(path);
-    ASSERT_EQ(diags.size(), 1u) << dump(diags);
-    EXPECT_EQ(diags[0].field, "observers[0].mode");
-    EXPECT_EQ(diags[0].line, 12);
-    EXPECT_THAT(diags[0].message, HasSubstr(std::string("navigation mode ") + mode));
-    EXPECT_THAT(diags[0].message, HasSubstr("is not implemented yet: expected 0, 1 or 3"));
-    EXPECT_THROW(load_scenario(path), ScenarioError);
-  }
+  const std::string path = write_file("mode4.yaml", kValid + "    mode: 4\n  - spacecraft: SV2\n    mode: 3\n");
+  const auto diags = validate_scenario_file(path);
+  ASSERT_EQ(diags.size(), 1u) << dump(diags);
+  EXPECT_EQ(diags[0].field, "observers[0].mode");
+  EXPECT_EQ(diags[0].line, 12);
+  EXPECT_THAT(diags[0].message, HasSubstr("navigation mode 4"));
+  EXPECT_THAT(diags[0].message, HasSubstr("is not implemented yet: expected 0, 1, 2 or 3"));
+  EXPECT_THROW(load_scenario(path), ScenarioError);
+}
+
+TEST(ScenarioValidation, Mode2WithATargetListLoads) {
+  const std::string path =
+      write_file("mode2.yaml", kValid + "    mode: 2\n    targets: [SV2]\n  - spacecraft: SV2\n    mode: 3\n");
+  const auto diags = validate_scenario_file(path);
+  EXPECT_TRUE(diags.empty()) << dump(diags);
+  const Scenario s = load_scenario(path);
+  EXPECT_EQ(s.observers[0].mode, 2);
+  EXPECT_EQ(s.observers[0].targets, std::vector<std::string>{"SV2"});
+}
+
+TEST(ScenarioValidation, UnknownOrSelfTargetsAreNamed) {
+  const std::string path =
+      write_file("targets.yaml", kValid + "    mode: 2\n    targets: [SV9, SV4]\n  - spacecraft: SV2\n    mode: 3\n");
+  const auto diags = validate_scenario_file(path);
+  ASSERT_EQ(diags.size(), 2u) << dump(diags);
+  EXPECT_THAT(dump(diags), HasSubstr("SV9"));
+  EXPECT_THAT(dump(diags), HasSubstr("not its own target"));
 }
 
 // --- Validation: one test per case ---------------------------------------------

@@ -7,6 +7,7 @@
 #include "artms/astro/constants.hpp"
 #include "artms/astro/elements.hpp"
 #include "artms/astro/roe.hpp"
+#include "artms/dynamics/j2_mean.hpp"
 #include "artms/sod/apriori.hpp"
 
 namespace artms::fsw {
@@ -72,6 +73,20 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   return o;
 }
 
+bod::Options bod_options(const config::BodTuning& t) {
+  bod::Options o;
+  o.samples = t.samples;
+  o.max_iterations = t.max_iterations;
+  o.range_min_m = t.range_min_m;
+  o.range_max_m = t.range_max_m;
+  o.min_measurements = t.min_measurements;
+  o.max_measurements = t.max_measurements;
+  o.max_sigma_range_fraction = t.max_sigma_range_fraction;
+  o.max_residual_rms_rad = t.max_residual_arcsec * astro::kArcsecToRad;
+  o.validate();
+  return o;
+}
+
 double remote_bearing_max_age_s(const config::ObserverUplink& up) {
   return (imp::SamusOptions{}.n_scan + up.tuning.imp.dbscan_frames) * up.swarm_max_cadence_s + up.isl_period_s +
          up.isl_latency_s + 2.0 * up.step_s;
@@ -82,7 +97,21 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   fuse_remote_ = up.observer.mode == 3;
   if (opt_.remote_hold_s < 0.0) opt_.remote_hold_s = remote_bearing_max_age_s(up);
   if (fuse_remote_) opt_.max_lag_s = std::max(opt_.max_lag_s, opt_.remote_hold_s);
-  for (const auto& a : up.apriori) target_ids_.push_back(a.target);
+  // The targets: those of the ground a-priori, else (mode 2) the uplinked
+  // target list, else every other spacecraft of the swarm.
+  if (!up.apriori.empty()) {
+    for (const auto& a : up.apriori) target_ids_.push_back(a.target);
+  } else if (!up.observer.targets.empty()) {
+    target_ids_ = up.observer.targets;
+  } else {
+    for (const auto& id : up.swarm_ids) {
+      if (id != up.observer.spacecraft) target_ids_.push_back(id);
+    }
+  }
+  has_estimate_.assign(target_ids_.size(), false);
+  last_bod_.resize(target_ids_.size());
+  bod_opt_ = bod_options(up.tuning.bod);
+  if (up.tuning.bod.enabled) next_bod_ = up.epoch.plus_seconds(up.tuning.bod.period_s);
   local_.assign(target_ids_.size(), 0);
   nis_sum_.assign(target_ids_.size(), 0.0);
   nis_n_.assign(target_ids_.size(), 0);
@@ -229,15 +258,40 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
   const int n = static_cast<int>(target_ids_.size());
   Eigen::MatrixXd P = Eigen::MatrixXd::Zero(6 * (n + 1), 6 * (n + 1));
   P.topLeftCorner<6, 6>() = P_obs;
+  int from_apriori = 0, from_bod = 0;
   for (int k = 0; k < n; ++k) {
-    roes.push_back(apriori_at(k, g.t));
-    P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = apriori_covariance_at(k, g.t);
+    astro::Vec6 roe;
+    astro::Mat6 Pk;
+    has_estimate_[static_cast<std::size_t>(k)] = restart_estimate(k, g.t, roe, Pk);
+    if (!has_estimate_[static_cast<std::size_t>(k)]) {
+      // No estimate yet (mode 2): a placeholder 35 km ahead with a tight
+      // covariance that nothing updates; left out of association, updates,
+      // health and telemetry until BOD initialises it.
+      roe << 0.0, 35e3 / obs.a_m, 0.0, 0.0, 0.0, 0.0;
+      Pk = astro::Mat6::Identity() * std::pow(1.0 / obs.a_m, 2);
+    } else if (last_bod_[static_cast<std::size_t>(k)]) {
+      ++from_bod;
+    } else {
+      ++from_apriori;
+    }
+    roes.push_back(astro::Roe::from_vector(roe));
+    P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Pk;
   }
   filter_->initialize(g.t, filter_->make_state(obs, roes), P);
   tracks_.clear();
   reinit_pending_ = false;
-  messages_.push_back("SOD initialised at the GNSS fix of " + astro::utc_string(g.t, 0) + " with the ground a-priori of " +
-                      std::to_string(n) + " targets (" + std::to_string(up_.apriori_age_days) + " days old)");
+  std::string what;
+  if (from_apriori > 0) {
+    what = " with the ground a-priori of " + std::to_string(from_apriori) + " targets (" +
+           std::to_string(up_.apriori_age_days) + " days old)";
+  }
+  if (from_bod > 0) what += (what.empty() ? " with " : " and ") + std::string("the latest BOD estimate of ") +
+                            std::to_string(from_bod) + " targets";
+  if (from_apriori + from_bod < n) {
+    what += (what.empty() ? "; " : "; ") + std::to_string(n - from_apriori - from_bod) +
+            " targets wait for BOD (no a-priori)";
+  }
+  messages_.push_back("SOD initialised at the GNSS fix of " + astro::utc_string(g.t, 0) + what);
 }
 
 bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const {
@@ -248,6 +302,18 @@ bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& 
 }
 
 void Navigator::process(const Event& e, const imp::Samus& samus) {
+  if (e.kind == EventKind::kTrackBearing && next_bod_) {
+    // Bounded: the latest batch_orbits orbits (at the longest LEO period) of every track.
+    const double keep_s = up_.tuning.bod.batch_orbits * 6400.0;
+    auto& h = history_[e.track];
+    h.push_back({e.t, e.u_eci, e.q_cam_from_eci, e.segment});
+    while (!h.empty() && astro::seconds_between(h.front().t, e.t) > keep_s) h.pop_front();
+    if (history_.size() > 64) {
+      std::erase_if(history_, [&](const auto& kv) {
+        return kv.second.empty() || astro::seconds_between(kv.second.back().t, e.t) > keep_s;
+      });
+    }
+  }
   if (!filter_ || (reinit_pending_ && e.kind == EventKind::kGnss)) {
     if (e.kind == EventKind::kGnss) initialise(e.gnss);
     else ++late_;
@@ -292,7 +358,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       for (std::size_t k = 0; k < target_ids_.size(); ++k) {
         imp::TargetPrediction pr;
         double d2 = 1e6;
-        if (predict_plane(f, static_cast<int>(k), samus, pr)) {
+        if (has_estimate_[k] && predict_plane(f, static_cast<int>(k), samus, pr)) {
           const Eigen::Matrix2d S = pr.cov + s2 * Eigen::Matrix2d::Identity();
           d2 = (p - pr.p).dot(S.ldlt().solve(p - pr.p));
         }
@@ -357,7 +423,8 @@ void Navigator::process_remote(const std::vector<Event>& group) {
   using L = sod::LineOfSightMeasurement;
   const std::string& sender = senders_[static_cast<std::size_t>(group.front().track)];
   const auto own = std::find(target_ids_.begin(), target_ids_.end(), sender);
-  const int from = own != target_ids_.end() ? static_cast<int>(own - target_ids_.begin()) : L::kExternal;
+  int from = own != target_ids_.end() ? static_cast<int>(own - target_ids_.begin()) : L::kExternal;
+  if (from >= 0 && !has_estimate_[static_cast<std::size_t>(from)]) from = L::kExternal;  // no estimate of the sender yet
   if (from == L::kExternal && !group.front().sender_position_valid) {
     remote_unassigned_ += group.size();
     return;
@@ -365,7 +432,7 @@ void Navigator::process_remote(const std::vector<Event>& group) {
   // Candidate bodies: this observer and every target other than the sender.
   std::vector<int> bodies = {L::kObserver};
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
-    if (k != from) bodies.push_back(k);
+    if (k != from && has_estimate_[static_cast<std::size_t>(k)]) bodies.push_back(k);
   }
   auto measurement = [&](const Event& e, int to) {
     L m;
@@ -436,7 +503,7 @@ bool Navigator::blended(sod::SodFilter& f, int k, astro::TimeTT t) {
   if (!f.time_update(t).usable) return false;
   const Eigen::Vector3d u = los_eci_of(observer_target_mean(f, k)).normalized();
   for (int j = 0; j < static_cast<int>(target_ids_.size()); ++j) {
-    if (j == k) continue;
+    if (j == k || !has_estimate_[static_cast<std::size_t>(j)]) continue;
     const Eigen::Vector3d v = los_eci_of(observer_target_mean(f, j)).normalized();
     const double angle = std::acos(std::clamp(u.dot(v), -1.0, 1.0));
     if (angle * fx < opt_.blend_separation_px) {
@@ -459,14 +526,232 @@ void Navigator::check_health() {
   }
   for (std::size_t k = 0; k < h.targets.size(); ++k) {
     const auto c = h.targets[k].condition;
+    if (!has_estimate_[k]) continue;
     if (c != sod::HealthCondition::kLargeResiduals && c != sod::HealthCondition::kOutOfRange) continue;
     const int ki = static_cast<int>(k);
-    f.reinitialize_target(ki, apriori_at(ki, f.epoch()).as_vector(), apriori_covariance_at(ki, f.epoch()));
+    astro::Vec6 roe;
+    astro::Mat6 P;
+    const bool have = restart_estimate(ki, f.epoch(), roe, P);
     for (auto& [tid, as] : tracks_) {
       if (as.target == ki) as = Association{};
     }
+    if (have) {
+      f.reinitialize_target(ki, roe, P);
+    } else {
+      has_estimate_[k] = false;
+    }
     messages_.push_back("SOD target " + target_ids_[k] + " unhealthy (" + std::string(sod::to_string(c)) + ": " +
-                        h.targets[k].reason + "): re-initialised from the ground a-priori");
+                        h.targets[k].reason + "): " +
+                        (!have ? "dropped until BOD initialises it again"
+                         : last_bod_[k] ? "re-initialised from its latest BOD estimate"
+                                        : "re-initialised from the ground a-priori"));
+  }
+}
+
+bool Navigator::restart_estimate(int k, astro::TimeTT t, astro::Vec6& roe, astro::Mat6& P) const {
+  const auto& b = last_bod_[static_cast<std::size_t>(k)];
+  if (b) {
+    // The most recent BOD estimate, carried to t with the along-track drift.
+    const double dt = astro::seconds_between(b->t, t);
+    roe = sod::apriori_roe_drifted(b->roe, a_observer_m_, dt);
+    P = sod::apriori_covariance_drifted(b->P, a_observer_m_, dt);
+    return true;
+  }
+  if (static_cast<std::size_t>(k) < up_.apriori.size()) {
+    roe = apriori_at(k, t).as_vector();
+    P = apriori_covariance_at(k, t);
+    return true;
+  }
+  return false;
+}
+
+Navigator::BodEstimate Navigator::osculating_estimate(const bod::Result& r, const astro::QnsElements& observer_mean) const {
+  // roe_osc = roe(osc(observer mean), osc(target mean)), target mean from eq. (4) inverted.
+  const auto map = [&](const Vec6& roe_mean) {
+    const astro::QnsElements target = astro::qns_from_roe(observer_mean, astro::Roe::from_vector(roe_mean));
+    return astro::roe_from_qns(dynamics::osculating_from_mean(observer_mean), dynamics::osculating_from_mean(target))
+        .as_vector();
+  };
+  const Vec6 m = r.roe_mean.as_vector();
+  BodEstimate b;
+  b.t = r.t_est;
+  b.roe = map(m);
+  Mat6 J;
+  for (int k = 0; k < 6; ++k) {
+    Vec6 a = m, c = m;
+    a[k] += 1e-7;
+    c[k] -= 1e-7;
+    Vec6 d = map(a) - map(c);
+    d[1] = astro::wrap_pi(d[1]);
+    J.col(k) = d / 2e-7;
+  }
+  b.P = J * r.P_roe_mean * J.transpose();
+  b.P = 0.5 * (b.P + b.P.transpose()).eval();
+  return b;
+}
+
+double Navigator::bod_distance2(int k, const BodEstimate& b) const {
+  const auto& f = *filter_;
+  const int off = f.layout().target_offset(k);
+  Vec6 d = b.roe - f.state().segment<6>(off);
+  d[1] = astro::wrap_pi(d[1]);
+  const Mat6 S = b.P + f.covariance().block<6, 6>(off, off);
+  const Eigen::LDLT<Mat6> ldlt(S);
+  const double d2 = d.dot(ldlt.solve(d));
+  return std::isfinite(d2) ? d2 : 1e30;
+}
+
+void Navigator::set_target_from_bod(int k, int track, const BodEstimate& b, const std::string& why) {
+  filter_->reinitialize_target(k, b.roe, b.P);
+  has_estimate_[static_cast<std::size_t>(k)] = true;
+  for (auto& [tid, as] : tracks_) {
+    if (as.target == k) as = Association{};
+  }
+  Association& as = tracks_[track];
+  as = Association{};
+  as.target = k;
+  as.last = b.t;
+  const auto h = history_.find(track);
+  as.segment = h != history_.end() && !h->second.empty() ? h->second.back().segment : 1;
+  messages_.push_back("SOD target " + target_ids_[static_cast<std::size_t>(k)] + " " + why + "; IMP track " +
+                      std::to_string(track) + " bound to it");
+}
+
+void Navigator::run_bod(astro::TimeTT t_est) {
+  auto& f = *filter_;
+  bod::ObserverPrior prior;
+  prior.t_est = t_est;
+  try {
+    prior.mean = dynamics::mean_from_osculating(f.observer());
+  } catch (const std::exception& ex) {
+    messages_.push_back(std::string("BOD skipped: the observer's mean elements: ") + ex.what());
+    return;
+  }
+  prior.P_prior = f.covariance().block<5, 5>(1, 1);
+  const double span_s = up_.tuning.bod.batch_orbits * astro::orbit_period_s(prior.mean.a_m);
+  int attempted = 0;
+  for (auto it = history_.begin(); it != history_.end();) {
+    auto& h = it->second;
+    std::erase_if(h, [&](const TrackBearing& b) { return astro::seconds_between(b.t, t_est) > span_s; });
+    if (h.empty()) {
+      it = history_.erase(it);
+      continue;
+    }
+    const int track = it->first;
+    ++it;
+    std::vector<bod::Measurement> batch;
+    astro::TimeTT last = h.front().t;
+    for (const auto& b : h) {
+      if (b.t > t_est) continue;
+      batch.push_back({b.t, b.u_eci, b.q_cam_from_eci.toRotationMatrix()});
+      last = std::max(last, b.t);
+    }
+    // A track that is gone (nothing in the latest half hour), or too short.
+    if (static_cast<int>(batch.size()) < bod_opt_.min_measurements || astro::seconds_between(last, t_est) > 1800.0) {
+      continue;
+    }
+    ++attempted;
+    ++bod_attempts_;
+    const bod::Result r = bod::solve(batch, prior, bod_opt_);
+    char head[96];
+    std::snprintf(head, sizeof head, "BOD attempt %zu on IMP track %d at %s: ", bod_attempts_, track,
+                  astro::utc_string(t_est, 0).c_str());
+    if (!r.usable()) {
+      messages_.push_back(head + r.brief());
+      continue;
+    }
+    ++bod_usable_;
+    const BodEstimate b = osculating_estimate(r, prior.mean);
+    const double chi2 = up_.tuning.bod.check_chi2;
+    const auto bound = tracks_.find(track);
+    char buf[200];
+    if (bound != tracks_.end() && bound->second.target >= 0) {
+      // Health check (1) of the track's target.
+      const int k = bound->second.target;
+      last_bod_[static_cast<std::size_t>(k)] = b;
+      const double d2 = bod_distance2(k, b);
+      if (d2 > chi2) {
+        std::snprintf(buf, sizeof buf,
+                      "unhealthy (health check 1: squared Mahalanobis distance %.1f between BOD and SOD > %.2f): "
+                      "re-initialised from BOD",
+                      d2, chi2);
+        messages_.push_back(head + r.brief());
+        set_target_from_bod(k, track, b, buf);
+      } else {
+        std::snprintf(buf, sizeof buf, "; health check 1 passed for target %s (squared Mahalanobis distance %.1f <= %.2f)",
+                      target_ids_[static_cast<std::size_t>(k)].c_str(), d2, chi2);
+        messages_.push_back(head + r.brief() + buf);
+      }
+      continue;
+    }
+    // An unbound track: a target without an estimate first (mode 2), else
+    // the nearest target that has no bound track.
+    int waiting = -1;
+    for (int k = 0; k < static_cast<int>(target_ids_.size()) && waiting < 0; ++k) {
+      if (!has_estimate_[static_cast<std::size_t>(k)] && !tracked(k, t_est)) waiting = k;
+    }
+    if (waiting >= 0) {
+      last_bod_[static_cast<std::size_t>(waiting)] = b;
+      messages_.push_back(head + r.brief());
+      set_target_from_bod(waiting, track, b, "initialised by BOD (no a-priori)");
+      continue;
+    }
+    int best = -1;
+    double d2_best = 1e300, d2_second = 1e300;
+    for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
+      if (!has_estimate_[static_cast<std::size_t>(k)] || tracked(k, t_est)) continue;
+      const double d2 = bod_distance2(k, b);
+      if (d2 < d2_best) {
+        d2_second = d2_best;
+        d2_best = d2;
+        best = k;
+      } else if (d2 < d2_second) {
+        d2_second = d2;
+      }
+    }
+    if (best < 0) {
+      messages_.push_back(head + r.brief() + "; not used: every target has a bound IMP track");
+      continue;
+    }
+    if (d2_second < 4.0 * d2_best && d2_best > 1.0) {
+      std::snprintf(buf, sizeof buf, "; not used: two targets without a bound track fit it (squared distances %.1f, %.1f)",
+                    d2_best, d2_second);
+      messages_.push_back(head + r.brief() + buf);
+      continue;
+    }
+    last_bod_[static_cast<std::size_t>(best)] = b;
+    const int off = f.layout().target_offset(best);
+    const double sigma_sod = std::sqrt(f.covariance()(off + 1, off + 1));
+    const double sigma_bod = std::sqrt(b.P(1, 1));
+    messages_.push_back(head + r.brief());
+    if (d2_best > chi2) {
+      std::snprintf(buf, sizeof buf,
+                    "unhealthy (health check 1: squared Mahalanobis distance %.1f between BOD and SOD > %.2f): "
+                    "re-initialised from BOD",
+                    d2_best, chi2);
+      set_target_from_bod(best, track, b, buf);
+    } else if (sigma_bod < sigma_sod) {
+      std::snprintf(buf, sizeof buf,
+                    "refined from BOD (its track was not bound; BOD's a*dlambda 1-sigma %.0f m < SOD's %.0f m, "
+                    "squared distance %.1f)",
+                    sigma_bod * a_observer_m_, sigma_sod * a_observer_m_, d2_best);
+      set_target_from_bod(best, track, b, buf);
+    } else {
+      Association& as = tracks_[track];
+      as = Association{};
+      as.target = best;
+      as.last = t_est;
+      as.segment = history_.count(track) && !history_[track].empty() ? history_[track].back().segment : 1;
+      std::snprintf(buf, sizeof buf, "IMP track %d bound to target %s by BOD (squared distance %.1f)", track,
+                    target_ids_[static_cast<std::size_t>(best)].c_str(), d2_best);
+      messages_.push_back(buf);
+    }
+  }
+  if (attempted == 0) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "BOD at %s: no IMP track with %d bearings in the latest %.1f orbits",
+                  astro::utc_string(t_est, 0).c_str(), bod_opt_.min_measurements, up_.tuning.bod.batch_orbits);
+    messages_.push_back(buf);
   }
 }
 
@@ -482,6 +767,11 @@ void Navigator::process_until(astro::TimeTT limit, const imp::Samus& samus) {
   });
   std::size_t n = 0;
   while (n < queue_.size() && queue_[n].t <= limit) {
+    // BOD every tuning.bod.period, on what the filter has seen up to its epoch.
+    if (next_bod_ && queue_[n].t >= *next_bod_) {
+      if (filter_ && !reinit_pending_) run_bod(filter_->epoch());
+      while (*next_bod_ <= queue_[n].t) *next_bod_ = next_bod_->plus_seconds(up_.tuning.bod.period_s);
+    }
     if (queue_[n].kind != EventKind::kRemoteBearing) {
       process(queue_[n++], samus);
       continue;
@@ -526,6 +816,7 @@ NavReport Navigator::report(astro::TimeTT t) const {
   const Mat6 J = jacobian_rv_from_qns(oe);
   r.P_rv = J * f.covariance().topLeftCorner<6, 6>() * J.transpose();
   for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+    if (!has_estimate_[k]) continue;  // no estimate yet (mode 2, before BOD)
     const int off = f.layout().target_offset(static_cast<int>(k));
     TargetReport tr;
     tr.id = target_ids_[k];
@@ -558,7 +849,7 @@ std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, co
   std::vector<double> width(K, 1e9);
   for (std::size_t k = 0; k < K; ++k) {
     imp::TargetPrediction pr;
-    if (!predict_plane(f, static_cast<int>(k), samus, pr)) continue;
+    if (!has_estimate_[k] || !predict_plane(f, static_cast<int>(k), samus, pr)) continue;
     have[k] = true;
     width[k] = std::sqrt(pr.cov.trace());
     for (std::size_t c = 0; c < C; ++c) {
@@ -603,7 +894,7 @@ std::vector<Navigator::PixelRegion> Navigator::untracked_regions(astro::TimeTT t
   if (!fp) return out;
   const sod::SodFilter& f = *fp;
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
-    if (tracked(k, t)) continue;
+    if (!has_estimate_[static_cast<std::size_t>(k)] || tracked(k, t)) continue;
     // Unscented transform of [observer QNS; target ROE] through the pixel of the line of sight.
     Eigen::VectorXd mean;
     Eigen::MatrixXd P;

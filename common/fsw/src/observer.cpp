@@ -90,9 +90,12 @@ Observer::Observer(ObserverSetup setup, std::string source)
   }
   aided_options_ = aided_detection_options(up_.camera_calibration, up_.tuning.imp);
   // Navigation modes 1 and 3: SOD from GNSS, the ground a-priori, IMP's
-  // bearings (and in mode 3 the remote ones).
+  // bearings (and in mode 3 the remote ones); mode 2: SOD from GNSS, its
+  // targets initialised by BOD from IMP's tracks (no a-priori).
   const int mode = up_.observer.mode;
-  if ((mode == 1 || mode == 3) && samus_ && !up_.apriori.empty()) navigator_.emplace(up_, *setup_.forces);
+  if (((mode == 1 || mode == 3) && samus_ && !up_.apriori.empty()) || (mode == 2 && samus_)) {
+    navigator_.emplace(up_, *setup_.forces);
+  }
 }
 
 void Observer::drain_navigator(std::int64_t t_ns) {
@@ -465,9 +468,17 @@ ObserverOutputs Observer::step(const bus::Tick& tick, ObserverInputs in) {
     const int mode = up_.observer.mode;
     const std::string head = "navigation mode " + std::to_string(mode);
     if (navigator_) {
-      events_.info(t.ns_since_j2000, head + ": IMP and SOD (GNSS fixes, the ground a-priori and " +
-                                         (mode == 3 ? "local and remote bearings" : "its own bearings") +
-                                         "); SOD starts at the first GNSS fix");
+      if (mode == 2) {
+        events_.info(t.ns_since_j2000, head + ": IMP, BOD and SOD (GNSS fixes, no a-priori: BOD initialises every "
+                                              "target from its IMP track, every " +
+                                              std::to_string(static_cast<int>(up_.tuning.bod.period_s / 60.0)) +
+                                              " min); SOD starts at the first GNSS fix");
+      } else {
+        events_.info(t.ns_since_j2000, head + (up_.tuning.bod.enabled ? ": IMP, BOD and SOD" : ": IMP and SOD") +
+                                           " (GNSS fixes, the ground a-priori and " +
+                                           (mode == 3 ? "local and remote bearings" : "its own bearings") +
+                                           "); SOD starts at the first GNSS fix");
+      }
     } else if (mode == 0) {
       events_.info(t.ns_since_j2000, head + ": the GNSS-only baseline" + (processor_ ? " with IMP" : ", IMP off"));
     } else {

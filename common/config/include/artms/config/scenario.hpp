@@ -95,6 +95,9 @@ struct ObserverConfig {
   CameraConfig camera;
   GnssConfig gnss;
   APrioriConfig apriori;
+  // The spacecraft this observer navigates (the ground's telecommand; mode 2
+  // gets no orbit for them). Empty: every other spacecraft.
+  std::vector<std::string> targets;
 };
 
 struct LinkOutage {
@@ -125,9 +128,18 @@ struct ImpTuning {
   double aided_detection_snr = 5.5;
 };
 struct BodTuning {
+  bool enabled = true;               // BOD runs in modes 1-3 (paper: health check 1, re-initialisation)
   double period_s = 5400.0;          // 90 minutes (paper, "Flight Operations")
   int samples = 100;                 // along-track separation samples
   int max_iterations = 20;
+  double range_min_m = 2e3;          // the dlambda samples: a|dlambda| in [range_min, range_max]
+  double range_max_m = 200e3;        // (the camera's sensitivity)
+  int min_measurements = 50;         // paper: batches of [50, 200] bearings
+  int max_measurements = 200;
+  double batch_orbits = 2.0;         // paper: over 1-2 orbits (the latest ones)
+  double max_sigma_range_fraction = 0.3;  // uncertainty tolerance of a usable result
+  double max_residual_arcsec = 60.0;      // post-fit RMS tolerance
+  double check_chi2 = 22.46;         // health check 1: squared Mahalanobis distance, 6 dof 99.9 %
 };
 struct SodTuning {
   double period_s = 60.0;

@@ -19,10 +19,22 @@
 // association_ambiguity times worse; until then its bearings only serve the
 // association.
 //
+// BOD (paper, "Batch Orbit Determination"; bod::solve): every
+// tuning.bod.period the bearings of every SAMUS track over the latest
+// tuning.bod.batch_orbits orbits (at least min_measurements) are solved
+// for a relative orbit. A usable result of a bound track is health check (1)
+// for its target (squared Mahalanobis distance to SOD above check_chi2:
+// the target is re-initialised from BOD). A usable result of an unbound
+// track initialises a target that has no estimate yet (navigation mode 2,
+// no a-priori; the first such target in the uplink's order), or else goes
+// to the target without a bound track it is nearest to: check (1) again, or
+// when BOD knows the range better than SOD (an a-priori too poor to bind
+// the track), SOD is refined from BOD; the track is then bound to it.
+//
 // Health (the paper's four checks, sod::SodFilter::health): a target failing
-// (3) large residuals or (4) valid range is re-initialised from the ground
-// a-priori (its along-track drift applied); (1) needs BOD (not yet in this
-// emulator); (2) is applied to the filter as a whole (a sparsely seen target
+// (3) large residuals or (4) valid range is re-initialised from its most
+// recent BOD estimate, else from the ground a-priori (along-track drift
+// applied to either); (2) is applied to the filter as a whole (a sparsely seen target
 // keeps its estimate, as in the paper's SV3 case), and a filter failing (2) or
 // (4) is re-initialised from the next GNSS fix and the a-priori.
 //
@@ -48,6 +60,7 @@
 #include <string>
 #include <vector>
 
+#include "artms/bod/bod.hpp"
 #include "artms/config/uplink.hpp"
 #include "artms/imp/samus.hpp"
 #include "artms/sod/sod_filter.hpp"
@@ -83,6 +96,8 @@ struct NavigatorOptions {
 // SOD's options from the uplinked telecommands, as the navigator builds its
 // filter (artms-sod-replay uses the same function).
 sod::SodOptions sod_options(const config::SodTuning& tuning);
+// BOD's options from the uplinked telecommands.
+bod::Options bod_options(const config::BodTuning& tuning);
 
 // The oldest a remote bearing can be when it arrives (NavigatorOptions::
 // remote_hold_s < 0): the sender's SAMUS decision lag (dbscan_frames + n_scan
@@ -199,6 +214,8 @@ class Navigator {
   // NavigatorOptions::blend_separation_px.
   [[nodiscard]] std::size_t blended_measurements() const { return blended_; }
   [[nodiscard]] bool initialised() const { return filter_.has_value(); }
+  [[nodiscard]] std::size_t bod_attempts() const { return bod_attempts_; }
+  [[nodiscard]] std::size_t bod_usable() const { return bod_usable_; }
 
  private:
   // What a queued event is (processed in (time, kind, track) order).
@@ -244,6 +261,20 @@ class Navigator {
     int segment = 0;       // the track's segment when it was bound
   };
 
+  // A bearing of a SAMUS track kept for BOD (the latest batch_orbits orbits).
+  struct TrackBearing {
+    astro::TimeTT t;
+    Eigen::Vector3d u_eci = Eigen::Vector3d::UnitZ();
+    Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
+    int segment = 1;
+  };
+  // A BOD estimate as SOD holds it: osculating ROE at its epoch.
+  struct BodEstimate {
+    astro::TimeTT t;
+    astro::Vec6 roe = astro::Vec6::Zero();
+    astro::Mat6 P = astro::Mat6::Zero();
+  };
+
   const config::ObserverUplink& up_;
   const dynamics::ForceModel& forces_;
   NavigatorOptions opt_;
@@ -278,6 +309,23 @@ class Navigator {
   std::vector<std::uint32_t> nis_n_;  // per target: bearing updates counted
   void record_nis(int k, const sod::UpdateSummary& s);
   std::vector<std::string> messages_;
+  // BOD.
+  bod::Options bod_opt_;
+  std::vector<bool> has_estimate_;  // false: no a-priori and no BOD yet (mode 2); left out of everything
+  std::vector<std::optional<BodEstimate>> last_bod_;
+  std::map<int, std::deque<TrackBearing>> history_;
+  std::optional<astro::TimeTT> next_bod_;
+  std::size_t bod_attempts_ = 0, bod_usable_ = 0;
+  void run_bod(astro::TimeTT t_est);
+  // BOD's mean ROE as osculating ROE relative to the observer's osculating
+  // elements (what SOD estimates), its covariance through the same map.
+  [[nodiscard]] BodEstimate osculating_estimate(const bod::Result& r, const astro::QnsElements& observer_mean) const;
+  // Health check (1): squared Mahalanobis distance between b and SOD's target k.
+  [[nodiscard]] double bod_distance2(int k, const BodEstimate& b) const;
+  void set_target_from_bod(int k, int track, const BodEstimate& b, const std::string& why);
+  // What target k restarts from: its latest BOD estimate, else the a-priori
+  // (both drifted to t); false when it has neither (mode 2).
+  bool restart_estimate(int k, astro::TimeTT t, astro::Vec6& roe, astro::Mat6& P) const;
 
   static Event bearing_event(astro::TimeTT t, EventKind kind, int track, const Eigen::Vector3d& u_eci,
                              const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad);

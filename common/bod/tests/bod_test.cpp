@@ -1,0 +1,286 @@
+// BOD (paper, "Batch Orbit Determination"): closed loop on bearings from a
+// numerically integrated J2 world (perfect and noisy, from a shifted prior),
+// the sensitivity matrix against numerical derivatives, the covariance
+// formula against a Monte Carlo of the batch, and the verdicts.
+#include "artms/bod/bod.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "artms/astro/bearing.hpp"
+#include "artms/astro/constants.hpp"
+#include "artms/dynamics/gve.hpp"
+#include "artms/testing/testing.hpp"
+
+namespace artms::bod {
+namespace {
+
+using astro::kArcsecToRad;
+using astro::Vec3;
+using astro::Vec6;
+
+// Named tolerances of the closed loop.
+constexpr double kModelRangeErrorFraction = 1e-3;    // perfect bearings from BOD's own model: 0.1 % of range
+constexpr double kModelRoeErrorM = 1.0;               // ... and 1 m in a*da, a*de, a*di
+// Perfect bearings from the numerically integrated J2 world: the first-order
+// mean theory leaves ~1 arcsec of systematic residual, which moves the
+// weakly observable range by a few percent.
+constexpr double kPerfectRangeErrorFraction = 0.03;
+constexpr double kNoisyRangeErrorFraction = 0.05;    // 5 arcsec noise: 5 % of range (issue 16)
+constexpr double kPerfectRoeErrorM = 100.0;          // a*da, a*de, a*di with perfect bearings of that world
+constexpr double kSensitivityRelTol = 0.03;          // analytic vs numerical sensitivity, per ROE column
+constexpr double kSensitivityRelTolA = 0.10;         // ... for the observer's a (a small column)
+constexpr double kNoise_rad = 5.0 * kArcsecToRad;
+
+const dynamics::ForceModel& j2_forces() {
+  static const dynamics::ForceModel f =
+      dynamics::ForceModel::load(dynamics::ForceModelOptions::parse("j2"), ARTMS_DATA_DIR);
+  return f;
+}
+
+// A world integrated with the J2 force model (not the mean theory BOD uses):
+// the observer in a 500 km sun-synchronous orbit and a target ~50 km ahead on
+// a PSE-like relative orbit, imaged by a velocity-pointing camera every 60 s.
+struct World {
+  astro::TimeTT t0 = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
+  astro::QnsElements obs0{astro::kRadiusEarth_m + 500e3, 2e-4, 9e-4, 97.6 * astro::kDegToRad, 30.0 * astro::kDegToRad,
+                          0.3};
+  Vec6 a_roe_m = (Vec6() << 3.0, 50e3, 300.0, -200.0, 250.0, 400.0).finished();
+  std::vector<astro::QnsElements> obs, tgt;
+  std::vector<astro::TimeTT> t;
+
+  explicit World(double span_s = 1.5 * 5677.0, double cadence_s = 60.0, Vec6 roe = Vec6::Zero()) {
+    if (roe.norm() > 0.0) a_roe_m = roe;
+    const dynamics::GveRk4Propagator prop(j2_forces(), dynamics::SpacecraftProperties{});
+    astro::QnsElements o = obs0, d = astro::qns_from_roe(obs0, astro::Roe::from_scaled_m(a_roe_m, obs0.a_m));
+    astro::TimeTT tc = t0;
+    for (double s = 0.0; s <= span_s + 1e-6; s += cadence_s) {
+      const astro::TimeTT tn = t0.plus_seconds(s);
+      o = prop.propagate(o, tc, tn);
+      d = prop.propagate(d, tc, tn);
+      tc = tn;
+      obs.push_back(o);
+      tgt.push_back(d);
+      t.push_back(tn);
+    }
+  }
+  // Bearings with Gaussian noise of noise_rad per angle (the camera frame of
+  // a velocity-pointing star tracker).
+  std::vector<Measurement> bearings(double noise_rad, std::mt19937_64* rng) const {
+    std::vector<Measurement> out;
+    std::normal_distribution<double> n01;
+    for (std::size_t j = 0; j < t.size(); ++j) {
+      const astro::StateVector xo = astro::cartesian_from_qns(obs[j]), xt = astro::cartesian_from_qns(tgt[j]);
+      Measurement m;
+      m.t = t[j];
+      m.R_v_from_eci = astro::R_v_from_eci(xo, astro::Boresight::kPlusVelocity);
+      astro::Bearing b = astro::bearing_from_los(m.R_v_from_eci * (xt.r_m - xo.r_m));
+      if (rng) {
+        b.az_rad += noise_rad * n01(*rng);
+        b.el_rad += noise_rad * n01(*rng);
+      }
+      m.u_eci = m.R_v_from_eci.transpose() * astro::unit_los_from_bearing(b);
+      out.push_back(m);
+    }
+    return out;
+  }
+  // The observer's coarse orbit at the last epoch: mean elements of the
+  // truth, plus an error drawn from P_prior when rng is given, and a shift
+  // of its semi-major axis.
+  ObserverPrior prior(double a_shift_m, std::mt19937_64* rng) const {
+    ObserverPrior p;
+    p.t_est = t.back();
+    p.mean = dynamics::mean_from_osculating(obs.back());
+    p.mean.a_m += a_shift_m;
+    // GNSS-like: 10 m in position -> ~1.5e-6 in each angle-like element.
+    const double s = 10.0 / obs0.a_m;
+    p.P_prior = Mat5::Identity() * s * s;
+    if (rng) {
+      std::normal_distribution<double> n01;
+      p.mean.ex += s * n01(*rng);
+      p.mean.ey += s * n01(*rng);
+      p.mean.i_rad += s * n01(*rng);
+      p.mean.raan_rad += s * n01(*rng);
+      p.mean.u_rad += s * n01(*rng);
+    }
+    return p;
+  }
+  // The target's true mean ROE at the last epoch (a*ROE meters).
+  [[nodiscard]] Vec6 true_a_roe_m() const {
+    const auto mo = dynamics::mean_from_osculating(obs.back());
+    const auto mt = dynamics::mean_from_osculating(tgt.back());
+    return astro::roe_from_qns(mo, mt).as_vector() * mo.a_m;
+  }
+};
+
+Options fast_options() {
+  Options o;
+  o.range_min_m = 5e3;
+  o.range_max_m = 200e3;
+  o.samples = 60;
+  return o;
+}
+
+TEST(Bod, PerfectBearingsFromAShiftedStartRecoverTheRelativeOrbit) {
+  const World w;
+  const Result r = solve(w.bearings(0.0, nullptr), w.prior(20.0, nullptr), fast_options());
+  ASSERT_TRUE(r.usable()) << r.brief();
+  const Vec6 truth = w.true_a_roe_m();
+  const Vec6 est = r.roe_mean.as_vector() * r.a_observer_m;
+  EXPECT_LT(std::abs(est[1] - truth[1]), kPerfectRangeErrorFraction * std::abs(truth[1]))
+      << "a*dlambda " << est[1] << " truth " << truth[1] << ": " << r.brief();
+  for (int k : {0, 2, 3, 4, 5}) {
+    EXPECT_LT(std::abs(est[k] - truth[k]), kPerfectRoeErrorM) << "component " << k << ": " << est[k] << " vs " << truth[k];
+  }
+  // The observer's a is refined from the 20 m shifted start.
+  EXPECT_LT(std::abs(r.a_observer_m - dynamics::mean_from_osculating(w.obs.back()).a_m), 40.0);
+  // The residual curve is convex around its minimum (paper, Figure "BOD").
+  ASSERT_GT(r.best_sample, 0);
+  EXPECT_LT(r.curve[static_cast<std::size_t>(r.best_sample)].chi2, r.curve.front().chi2);
+  EXPECT_LT(r.curve[static_cast<std::size_t>(r.best_sample)].chi2, r.curve.back().chi2);
+}
+
+TEST(Bod, PerfectBearingsOfTheMeanModelItselfAreRecovered) {
+  // Bearings from BOD's own dynamics (mean J2 propagation, the J2 STM of the
+  // ROE, mean-to-osculating conversion): the solver alone, from zero ROE.
+  const astro::TimeTT t0 = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
+  const astro::QnsElements mean0{astro::kRadiusEarth_m + 500e3, 2e-4, 9e-4, 97.6 * astro::kDegToRad,
+                                 30.0 * astro::kDegToRad, 0.3};
+  const Vec6 a_roe = (Vec6() << 3.0, 50e3, 300.0, -200.0, 250.0, 400.0).finished();
+  std::vector<Measurement> batch;
+  for (int j = 0; j <= 142; ++j) {
+    const double dt = 60.0 * j;
+    const auto o = dynamics::propagate_mean_j2(mean0, dt);
+    const auto d = astro::qns_from_roe(o, astro::Roe::from_vector(dynamics::roe_stm_j2(mean0, dt) * a_roe / mean0.a_m));
+    const auto xo = astro::cartesian_from_qns(dynamics::osculating_from_mean(o));
+    const auto xd = astro::cartesian_from_qns(dynamics::osculating_from_mean(d));
+    Measurement m;
+    m.t = t0.plus_seconds(dt);
+    m.R_v_from_eci = astro::R_v_from_eci(xo, astro::Boresight::kPlusVelocity);
+    m.u_eci = (xd.r_m - xo.r_m).normalized();
+    batch.push_back(m);
+  }
+  ObserverPrior prior;
+  prior.t_est = t0;
+  prior.mean = mean0;
+  prior.P_prior = Mat5::Identity() * 2e-12;
+  const Result r = solve(batch, prior, fast_options());
+  ASSERT_TRUE(r.usable()) << r.brief();
+  const Vec6 est = r.roe_mean.as_vector() * r.a_observer_m;
+  EXPECT_LT(std::abs(est[1] - a_roe[1]), kModelRangeErrorFraction * a_roe[1]) << r.brief();
+  for (int k : {0, 2, 3, 4, 5}) EXPECT_LT(std::abs(est[k] - a_roe[k]), kModelRoeErrorM) << "component " << k;
+  EXPECT_LT(std::abs(r.a_observer_m - mean0.a_m), 1.0);
+}
+
+TEST(Bod, NoisyBearingsGiveARangeInsideFivePercentAndThreeSigma) {
+  const World w;
+  std::mt19937_64 rng(7);
+  const Result r = solve(w.bearings(kNoise_rad, &rng), w.prior(0.0, &rng), fast_options());
+  ASSERT_TRUE(r.usable()) << r.brief();
+  const Vec6 truth = w.true_a_roe_m();
+  const double err = r.roe_mean.dlambda * r.a_observer_m - truth[1];
+  EXPECT_LT(std::abs(err), kNoisyRangeErrorFraction * std::abs(truth[1])) << r.brief();
+  EXPECT_LT(std::abs(err), 3.0 * r.sigma_range_m) << r.brief();
+  // R_vbs from the post-fit residuals recovers the injected noise (+-30 %).
+  EXPECT_NEAR(std::sqrt(r.R_vbs(0, 0)) / kNoise_rad, 1.0, 0.3);
+  EXPECT_NEAR(std::sqrt(r.R_vbs(1, 1)) / kNoise_rad, 1.0, 0.3);
+}
+
+TEST(Bod, SensitivityMatrixMatchesNumericalDerivatives) {
+  const World w;
+  const ObserverPrior p = w.prior(0.0, nullptr);
+  const BatchModel model(w.bearings(0.0, nullptr), p, dynamics::J2Constants{});
+  BatchModel::Vec7 x;
+  x << p.mean.a_m, w.a_roe_m;
+  const double h[7] = {1.0, 0.1, 1.0, 0.1, 0.1, 0.1, 0.1};
+  for (int j = 0; j < model.size(); j += 10) {
+    Eigen::Matrix<double, 2, 7> S;
+    (void)model.modelled(j, x, &S);
+    for (int k = 0; k < 7; ++k) {
+      BatchModel::Vec7 a = x, b = x;
+      a[k] += h[k];
+      b[k] -= h[k];
+      const Eigen::Vector2d num = (model.modelled(j, a) - model.modelled(j, b)) / (2.0 * h[k]);
+      EXPECT_LT((S.col(k) - num).norm(), (k == 0 ? kSensitivityRelTolA : kSensitivityRelTol) * num.norm() + 1e-13)
+          << "measurement " << j << " column " << k << ": analytic " << S.col(k).transpose() << " numerical "
+          << num.transpose();
+    }
+  }
+  // The linearised model against the full nonlinear chain it stands for.
+  for (int j = 0; j < model.size(); j += 10) {
+    const Eigen::Vector2d d = model.modelled(j, x) - model.modelled_exact(j, x, Eigen::Matrix<double, 5, 1>::Zero());
+    EXPECT_LT(d.norm(), 0.05 * kArcsecToRad) << "measurement " << j;
+  }
+}
+
+TEST(Bod, CovarianceMatchesAMonteCarloOfTheBatch) {
+  // Noise and prior errors drawn afresh per run; the sample covariance of
+  // the estimates against the mean of BOD's P (per component, a*ROE meters).
+  const World w;
+  Options o = fast_options();
+  o.range_min_m = 30e3;
+  o.range_max_m = 80e3;
+  o.samples = 25;
+  constexpr int kRuns = 80;
+  std::mt19937_64 rng(11);
+  std::vector<Vec6> est;
+  Vec6 mean_var = Vec6::Zero();
+  for (int run = 0; run < kRuns; ++run) {
+    const Result r = solve(w.bearings(kNoise_rad, &rng), w.prior(0.0, &rng), o);
+    ASSERT_TRUE(r.usable()) << "run " << run << ": " << r.brief();
+    est.push_back(r.roe_mean.as_vector() * r.a_observer_m);
+    mean_var += r.P_roe_mean.diagonal() * r.a_observer_m * r.a_observer_m / kRuns;
+  }
+  Vec6 mean = Vec6::Zero();
+  for (const auto& e : est) mean += e / kRuns;
+  Vec6 var = Vec6::Zero();
+  for (const auto& e : est) var += (e - mean).cwiseAbs2() / (kRuns - 1);
+  for (int k = 0; k < 6; ++k) {
+    const double ratio = var[k] / mean_var[k];
+    // 80 runs: the sample variance is within +-40 % of the truth at ~3 sigma.
+    EXPECT_GT(ratio, 0.55) << "component " << k << ": Monte Carlo " << std::sqrt(var[k]) << " m, BOD "
+                           << std::sqrt(mean_var[k]) << " m";
+    EXPECT_LT(ratio, 1.6) << "component " << k << ": Monte Carlo " << std::sqrt(var[k]) << " m, BOD "
+                          << std::sqrt(mean_var[k]) << " m";
+  }
+}
+
+TEST(Bod, TooFewBearingsAreRefusedWithTheCount) {
+  const World w(20 * 60.0);
+  const Result r = solve(w.bearings(0.0, nullptr), w.prior(0.0, nullptr), fast_options());
+  EXPECT_EQ(r.verdict, Verdict::kTooFewMeasurements);
+  EXPECT_NE(r.why.find("fewer than 50 bearings (21)"), std::string::npos) << r.why;
+}
+
+TEST(Bod, ARangeBeyondTheSamplesIsRefused) {
+  const World w;
+  Options o = fast_options();
+  o.range_min_m = 1e3;
+  o.range_max_m = 20e3;
+  const Result r = solve(w.bearings(0.0, nullptr), w.prior(0.0, nullptr), o);
+  EXPECT_EQ(r.verdict, Verdict::kMinimumAtEdge) << r.brief();
+}
+
+TEST(Bod, ABatchMixingTwoObjectsIsOutsideTheTolerances) {
+  const World a, b(1.5 * 5677.0, 60.0, (Vec6() << -5.0, 30e3, -500.0, 300.0, -400.0, 200.0).finished());
+  auto ma = a.bearings(0.0, nullptr), mb = b.bearings(0.0, nullptr);
+  std::vector<Measurement> mixed;
+  for (std::size_t j = 0; j < ma.size(); ++j) mixed.push_back(j % 2 ? mb[j] : ma[j]);
+  const Result r = solve(mixed, a.prior(0.0, nullptr), fast_options());
+  EXPECT_FALSE(r.usable()) << r.brief();
+}
+
+TEST(Bod, OptionsAreValidatedByName) {
+  Options o;
+  o.range_max_m = 1.0;
+  try {
+    o.validate();
+    FAIL() << "accepted range_max_m < range_min_m";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("range_max_m"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace artms::bod
