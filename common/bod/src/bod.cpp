@@ -95,6 +95,10 @@ void Options::validate() const {
   if (!(max_a_da_m > 0.0)) fail("max_a_da_m", "must be > 0");
   if (!(max_sigma_range_fraction > 0.0)) fail("max_sigma_range_fraction", "must be > 0");
   if (!(max_sigma_a_da_m > 0.0)) fail("max_sigma_a_da_m", "must be > 0");
+  if (!(model_sigma_m >= 0.0) || !std::isfinite(model_sigma_m)) fail("model_sigma_m", "must be finite and >= 0");
+  if (!(model_sigma_range_fraction >= 0.0) || !(model_sigma_range_fraction < 1.0)) {
+    fail("model_sigma_range_fraction", "must be in [0, 1)");
+  }
 }
 
 std::string Result::brief() const {
@@ -431,7 +435,8 @@ Result solve(const std::vector<Measurement>& batch_in, const ObserverPrior& prio
   const double var7 = (A7inv * (Omega + prior_part) * A7inv)(2, 2);
   const double var7_white = (A7inv * (white + prior_part) * A7inv)(2, 2);
   r.correlation_inflation = var7_white > 0.0 ? std::max(1.0, var7 / var7_white) : 1.0;
-  const double var_dlambda = var_dlambda_m2 * r.correlation_inflation;
+  const double var_dlambda = var_dlambda_m2 * r.correlation_inflation +
+                             std::pow(opt.model_sigma_range_fraction * x_star, 2);
   Mat6 A6, Om6, Pr6;
   for (int p = 0; p < 6; ++p) {
     for (int q = 0; q < 6; ++q) {
@@ -452,6 +457,7 @@ Result solve(const std::vector<Measurement>& batch_in, const ObserverPrior& prio
     P7(kFree[p], 2) = P7(2, kFree[p]) = g[p] * var_dlambda;
   }
   P7(2, 2) = var_dlambda;
+  for (int k : {1, 3, 4, 5, 6}) P7(k, k) += opt.model_sigma_m * opt.model_sigma_m;
   P7 = 0.5 * (P7 + P7.transpose()).eval();
   if (!(P7.diagonal().minCoeff() > 0.0) || !P7.allFinite()) {
     return fail(r, Verdict::kFlatResidualCurve, "residual curve flat: range unobservable (covariance not positive)");

@@ -222,6 +222,8 @@ TEST(Bod, CovarianceMatchesAMonteCarloOfTheBatch) {
   o.range_min_m = 30e3;
   o.range_max_m = 80e3;
   o.samples = 25;
+  o.model_sigma_m = 0.0;  // the paper's formula alone: noise and prior errors
+  o.model_sigma_range_fraction = 0.0;
   constexpr int kRuns = 80;
   std::mt19937_64 rng(11);
   std::vector<Vec6> est;

@@ -262,7 +262,7 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
   for (int k = 0; k < n; ++k) {
     astro::Vec6 roe;
     astro::Mat6 Pk;
-    has_estimate_[static_cast<std::size_t>(k)] = restart_estimate(k, g.t, roe, Pk);
+    has_estimate_[static_cast<std::size_t>(k)] = restart_estimate(k, g.t, obs, roe, Pk);
     if (!has_estimate_[static_cast<std::size_t>(k)]) {
       // No estimate yet (mode 2): a placeholder 35 km ahead with a tight
       // covariance that nothing updates; left out of association, updates,
@@ -531,7 +531,7 @@ void Navigator::check_health() {
     const int ki = static_cast<int>(k);
     astro::Vec6 roe;
     astro::Mat6 P;
-    const bool have = restart_estimate(ki, f.epoch(), roe, P);
+    const bool have = restart_estimate(ki, f.epoch(), f.observer(), roe, P);
     for (auto& [tid, as] : tracks_) {
       if (as.target == ki) as = Association{};
     }
@@ -548,14 +548,18 @@ void Navigator::check_health() {
   }
 }
 
-bool Navigator::restart_estimate(int k, astro::TimeTT t, astro::Vec6& roe, astro::Mat6& P) const {
+bool Navigator::restart_estimate(int k, astro::TimeTT t, const astro::QnsElements& observer_osc, astro::Vec6& roe,
+                                 astro::Mat6& P) const {
   const auto& b = last_bod_[static_cast<std::size_t>(k)];
   if (b) {
-    // The most recent BOD estimate, carried to t with the along-track drift.
-    const double dt = astro::seconds_between(b->t, t);
-    roe = sod::apriori_roe_drifted(b->roe, a_observer_m_, dt);
-    P = sod::apriori_covariance_drifted(b->P, a_observer_m_, dt);
-    return true;
+    try {
+      const OsculatingRoe o = osculating_at(*b, t, observer_osc);
+      roe = o.roe;
+      P = o.P;
+      return true;
+    } catch (const std::exception&) {
+      // the mean model refuses the observer's elements: fall through
+    }
   }
   if (static_cast<std::size_t>(k) < up_.apriori.size()) {
     roe = apriori_at(k, t).as_vector();
@@ -565,17 +569,21 @@ bool Navigator::restart_estimate(int k, astro::TimeTT t, astro::Vec6& roe, astro
   return false;
 }
 
-Navigator::BodEstimate Navigator::osculating_estimate(const bod::Result& r, const astro::QnsElements& observer_mean) const {
-  // roe_osc = roe(osc(observer mean), osc(target mean)), target mean from eq. (4) inverted.
+Navigator::OsculatingRoe Navigator::osculating_at(const BodEstimate& b, astro::TimeTT t,
+                                                 const astro::QnsElements& observer_osc) {
+  // Mean ROE at t by the J2 STM, then roe_osc = roe(osc(observer mean), osc(target mean)),
+  // the target's mean elements from eq. (4) inverted.
+  const Mat6 Phi = dynamics::roe_stm_j2(b.observer_mean, astro::seconds_between(b.t, t));
+  const Vec6 m = Phi * b.roe_mean;
+  const Mat6 Pm = Phi * b.P_mean * Phi.transpose();
+  const astro::QnsElements observer_mean = dynamics::mean_from_osculating(observer_osc);
+  const astro::QnsElements observer_back = dynamics::osculating_from_mean(observer_mean);
   const auto map = [&](const Vec6& roe_mean) {
     const astro::QnsElements target = astro::qns_from_roe(observer_mean, astro::Roe::from_vector(roe_mean));
-    return astro::roe_from_qns(dynamics::osculating_from_mean(observer_mean), dynamics::osculating_from_mean(target))
-        .as_vector();
+    return astro::roe_from_qns(observer_back, dynamics::osculating_from_mean(target)).as_vector();
   };
-  const Vec6 m = r.roe_mean.as_vector();
-  BodEstimate b;
-  b.t = r.t_est;
-  b.roe = map(m);
+  OsculatingRoe o;
+  o.roe = map(m);
   Mat6 J;
   for (int k = 0; k < 6; ++k) {
     Vec6 a = m, c = m;
@@ -585,12 +593,12 @@ Navigator::BodEstimate Navigator::osculating_estimate(const bod::Result& r, cons
     d[1] = astro::wrap_pi(d[1]);
     J.col(k) = d / 2e-7;
   }
-  b.P = J * r.P_roe_mean * J.transpose();
-  b.P = 0.5 * (b.P + b.P.transpose()).eval();
-  return b;
+  o.P = J * Pm * J.transpose();
+  o.P = 0.5 * (o.P + o.P.transpose()).eval();
+  return o;
 }
 
-double Navigator::bod_distance2(int k, const BodEstimate& b) const {
+double Navigator::bod_distance2(int k, const OsculatingRoe& b) const {
   const auto& f = *filter_;
   const int off = f.layout().target_offset(k);
   Vec6 d = b.roe - f.state().segment<6>(off);
@@ -601,7 +609,7 @@ double Navigator::bod_distance2(int k, const BodEstimate& b) const {
   return std::isfinite(d2) ? d2 : 1e30;
 }
 
-void Navigator::set_target_from_bod(int k, int track, const BodEstimate& b, const std::string& why) {
+void Navigator::set_target_from_bod(int k, int track, const OsculatingRoe& b, astro::TimeTT t, const std::string& why) {
   filter_->reinitialize_target(k, b.roe, b.P);
   has_estimate_[static_cast<std::size_t>(k)] = true;
   for (auto& [tid, as] : tracks_) {
@@ -610,7 +618,7 @@ void Navigator::set_target_from_bod(int k, int track, const BodEstimate& b, cons
   Association& as = tracks_[track];
   as = Association{};
   as.target = k;
-  as.last = b.t;
+  as.last = t;
   const auto h = history_.find(track);
   as.segment = h != history_.end() && !h->second.empty() ? h->second.back().segment : 1;
   messages_.push_back("SOD target " + target_ids_[static_cast<std::size_t>(k)] + " " + why + "; IMP track " +
@@ -653,22 +661,60 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     ++attempted;
     ++bod_attempts_;
     const bod::Result r = bod::solve(batch, prior, bod_opt_);
+    bus::BodAttempt& rec = bod_records_.emplace_back();
+    rec.observer = up_.observer.spacecraft;
+    rec.attempt = static_cast<std::uint32_t>(bod_attempts_);
+    rec.t_est_tt_ns = t_est.ns_since_j2000;
+    rec.track = track;
+    rec.verdict = static_cast<bus::BodVerdict>(r.verdict);
+    rec.why = bus::bounded(r.why, bus::kEventTextChars);
+    rec.measurements = static_cast<std::uint32_t>(r.measurements);
+    rec.iterations = static_cast<std::uint32_t>(r.iterations);
+    rec.residual_rms_rad = r.residual_rms_rad;
+    rec.correlation_inflation = r.correlation_inflation;
+    rec.a_observer_m = r.a_observer_m;
+    rec.range_m = r.range_m;
+    rec.sigma_range_m = r.sigma_range_m;
+    const double a_scale = r.a_observer_m > 0.0 ? r.a_observer_m : prior.mean.a_m;
+    for (int i = 0; i < 6; ++i) {
+      rec.a_roe_mean_m[static_cast<std::size_t>(i)] = r.roe_mean.as_vector()[i] * a_scale;
+      for (int j = 0; j < 6; ++j) {
+        rec.covariance_a_roe_m2[static_cast<std::size_t>(6 * i + j)] = r.P_roe_mean(i, j) * a_scale * a_scale;
+      }
+    }
+    for (std::size_t i = 0; i < r.curve.size() && i < bus::kMaxBodSamples; ++i) {
+      rec.curve.push_back({r.curve[i].a_dlambda_m, r.curve[i].residual_rms_rad, r.curve[i].chi2, r.curve[i].converged});
+    }
+    const auto decided = [&](int target, const std::string& action, double d2 = -1.0) {
+      rec.target = target >= 0 ? target_ids_[static_cast<std::size_t>(target)] : "";
+      rec.action = bus::bounded(action, bus::kEventTextChars);
+      rec.mahalanobis2 = d2;
+    };
     char head[96];
     std::snprintf(head, sizeof head, "BOD attempt %zu on IMP track %d at %s: ", bod_attempts_, track,
                   astro::utc_string(t_est, 0).c_str());
     if (!r.usable()) {
+      decided(-1, "not usable");
       messages_.push_back(head + r.brief());
       continue;
     }
     ++bod_usable_;
-    const BodEstimate b = osculating_estimate(r, prior.mean);
+    const BodEstimate est{t_est, prior.mean, r.roe_mean.as_vector(), r.P_roe_mean};
+    OsculatingRoe b;
+    try {
+      b = osculating_at(est, t_est, f.observer());
+    } catch (const std::exception& ex) {
+      decided(-1, std::string("not used: ") + ex.what());
+      messages_.push_back(head + r.brief() + "; not used: " + ex.what());
+      continue;
+    }
     const double chi2 = up_.tuning.bod.check_chi2;
     const auto bound = tracks_.find(track);
     char buf[200];
     if (bound != tracks_.end() && bound->second.target >= 0) {
       // Health check (1) of the track's target.
       const int k = bound->second.target;
-      last_bod_[static_cast<std::size_t>(k)] = b;
+      last_bod_[static_cast<std::size_t>(k)] = est;
       const double d2 = bod_distance2(k, b);
       if (d2 > chi2) {
         std::snprintf(buf, sizeof buf,
@@ -676,8 +722,10 @@ void Navigator::run_bod(astro::TimeTT t_est) {
                       "re-initialised from BOD",
                       d2, chi2);
         messages_.push_back(head + r.brief());
-        set_target_from_bod(k, track, b, buf);
+        decided(k, "health check 1 failed: SOD re-initialised from BOD", d2);
+        set_target_from_bod(k, track, b, t_est, buf);
       } else {
+        decided(k, "health check 1 passed", d2);
         std::snprintf(buf, sizeof buf, "; health check 1 passed for target %s (squared Mahalanobis distance %.1f <= %.2f)",
                       target_ids_[static_cast<std::size_t>(k)].c_str(), d2, chi2);
         messages_.push_back(head + r.brief() + buf);
@@ -691,9 +739,10 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       if (!has_estimate_[static_cast<std::size_t>(k)] && !tracked(k, t_est)) waiting = k;
     }
     if (waiting >= 0) {
-      last_bod_[static_cast<std::size_t>(waiting)] = b;
+      last_bod_[static_cast<std::size_t>(waiting)] = est;
       messages_.push_back(head + r.brief());
-      set_target_from_bod(waiting, track, b, "initialised by BOD (no a-priori)");
+      decided(waiting, "SOD initialised from BOD (no estimate before)");
+      set_target_from_bod(waiting, track, b, t_est, "initialised by BOD (no a-priori)");
       continue;
     }
     int best = -1;
@@ -710,16 +759,18 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       }
     }
     if (best < 0) {
+      decided(-1, "not used: every target has a bound IMP track");
       messages_.push_back(head + r.brief() + "; not used: every target has a bound IMP track");
       continue;
     }
     if (d2_second < 4.0 * d2_best && d2_best > 1.0) {
       std::snprintf(buf, sizeof buf, "; not used: two targets without a bound track fit it (squared distances %.1f, %.1f)",
                     d2_best, d2_second);
+      decided(-1, std::string("not used") + buf);
       messages_.push_back(head + r.brief() + buf);
       continue;
     }
-    last_bod_[static_cast<std::size_t>(best)] = b;
+    last_bod_[static_cast<std::size_t>(best)] = est;
     const int off = f.layout().target_offset(best);
     const double sigma_sod = std::sqrt(f.covariance()(off + 1, off + 1));
     const double sigma_bod = std::sqrt(b.P(1, 1));
@@ -729,14 +780,17 @@ void Navigator::run_bod(astro::TimeTT t_est) {
                     "unhealthy (health check 1: squared Mahalanobis distance %.1f between BOD and SOD > %.2f): "
                     "re-initialised from BOD",
                     d2_best, chi2);
-      set_target_from_bod(best, track, b, buf);
+      decided(best, "health check 1 failed: SOD re-initialised from BOD (unbound track)", d2_best);
+      set_target_from_bod(best, track, b, t_est, buf);
     } else if (sigma_bod < sigma_sod) {
       std::snprintf(buf, sizeof buf,
                     "refined from BOD (its track was not bound; BOD's a*dlambda 1-sigma %.0f m < SOD's %.0f m, "
                     "squared distance %.1f)",
                     sigma_bod * a_observer_m_, sigma_sod * a_observer_m_, d2_best);
-      set_target_from_bod(best, track, b, buf);
+      decided(best, "SOD refined from BOD (unbound track, BOD knows the range better)", d2_best);
+      set_target_from_bod(best, track, b, t_est, buf);
     } else {
+      decided(best, "track bound to the target (BOD consistent with SOD)", d2_best);
       Association& as = tracks_[track];
       as = Association{};
       as.target = best;

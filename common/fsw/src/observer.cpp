@@ -537,6 +537,7 @@ ObserverOutputs Observer::step(const bus::Tick& tick, ObserverInputs in) {
   nav.isl_received = n_.isl_received;
   nav.isl_rejected = n_.isl_rejected;
   out.nav = std::move(nav);
+  if (navigator_) out.bod = navigator_->take_bod_records();
   out.events = events_.take();
   return out;
 }

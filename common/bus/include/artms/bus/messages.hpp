@@ -219,6 +219,48 @@ struct LinkState {
   std::string reason;
 };
 
+// One BOD attempt (fsw::Navigator; paper, "Batch Orbit Determination"):
+// the batch, the residual curve over the dlambda samples, the chosen
+// estimate (mean ROE at t_est, a*ROE meters, with its covariance), the
+// verdict and what the navigator did with it.
+inline constexpr std::size_t kMaxBodSamples = 256;
+enum class BodVerdict : std::uint8_t {
+  kUsable = 0,
+  kTooFewMeasurements = 1,
+  kBadInput = 2,
+  kNotConverged = 3,
+  kMinimumAtEdge = 4,
+  kFlatResidualCurve = 5,
+  kOutsideTolerances = 6,
+};
+struct BodSample {
+  double a_dlambda_m = 0.0;
+  double residual_rms_rad = 0.0;
+  double chi2 = 0.0;
+  bool converged = false;
+};
+struct BodAttempt {
+  std::string observer;
+  std::uint32_t attempt = 0;       // 1, 2, ... per observer
+  std::int64_t t_est_tt_ns = 0;    // estimation epoch
+  std::int32_t track = -1;         // the SAMUS track
+  std::string target;              // the target it went to ("" when none)
+  BodVerdict verdict = BodVerdict::kBadInput;
+  std::string why;                 // empty when usable (bounded kReasonChars... kEventTextChars)
+  std::string action;              // what the navigator did (bounded kEventTextChars)
+  std::uint32_t measurements = 0;
+  std::uint32_t iterations = 0;
+  double residual_rms_rad = 0.0;
+  double correlation_inflation = 1.0;
+  double a_observer_m = 0.0;
+  double range_m = 0.0;
+  double sigma_range_m = 0.0;
+  std::array<double, 6> a_roe_mean_m{};      // [da, dlambda, dex, dey, dix, diy] * a
+  std::array<double, 36> covariance_a_roe_m2{};  // row-major
+  double mahalanobis2 = -1.0;      // health check 1 against SOD (< 0: not compared)
+  std::vector<BodSample> curve;    // at most kMaxBodSamples
+};
+
 struct Event {
   std::string source;
   std::int64_t t_tt_ns = 0;

@@ -61,6 +61,7 @@
 #include <vector>
 
 #include "artms/bod/bod.hpp"
+#include "artms/bus/messages.hpp"
 #include "artms/config/uplink.hpp"
 #include "artms/imp/samus.hpp"
 #include "artms/sod/sod_filter.hpp"
@@ -215,6 +216,8 @@ class Navigator {
   [[nodiscard]] std::size_t blended_measurements() const { return blended_; }
   [[nodiscard]] bool initialised() const { return filter_.has_value(); }
   [[nodiscard]] std::size_t bod_attempts() const { return bod_attempts_; }
+  // Every BOD attempt since the last call, for telemetry (bod/<observer>.csv).
+  std::vector<bus::BodAttempt> take_bod_records() { return std::exchange(bod_records_, {}); }
   [[nodiscard]] std::size_t bod_usable() const { return bod_usable_; }
 
  private:
@@ -268,9 +271,16 @@ class Navigator {
     Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
     int segment = 1;
   };
-  // A BOD estimate as SOD holds it: osculating ROE at its epoch.
+  // A BOD estimate: the target's mean ROE and covariance at t, with the
+  // observer's mean elements they are relative to.
   struct BodEstimate {
     astro::TimeTT t;
+    astro::QnsElements observer_mean;
+    astro::Vec6 roe_mean = astro::Vec6::Zero();
+    astro::Mat6 P_mean = astro::Mat6::Zero();
+  };
+  // The same as SOD holds a target: osculating ROE and covariance.
+  struct OsculatingRoe {
     astro::Vec6 roe = astro::Vec6::Zero();
     astro::Mat6 P = astro::Mat6::Zero();
   };
@@ -316,16 +326,21 @@ class Navigator {
   std::map<int, std::deque<TrackBearing>> history_;
   std::optional<astro::TimeTT> next_bod_;
   std::size_t bod_attempts_ = 0, bod_usable_ = 0;
+  std::vector<bus::BodAttempt> bod_records_;
   void run_bod(astro::TimeTT t_est);
-  // BOD's mean ROE as osculating ROE relative to the observer's osculating
-  // elements (what SOD estimates), its covariance through the same map.
-  [[nodiscard]] BodEstimate osculating_estimate(const bod::Result& r, const astro::QnsElements& observer_mean) const;
+  // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating
+  // ROE relative to the observer's osculating elements observer_osc at t
+  // (what SOD estimates), the covariance through the same maps.
+  [[nodiscard]] static OsculatingRoe osculating_at(const BodEstimate& b, astro::TimeTT t,
+                                                   const astro::QnsElements& observer_osc);
   // Health check (1): squared Mahalanobis distance between b and SOD's target k.
-  [[nodiscard]] double bod_distance2(int k, const BodEstimate& b) const;
-  void set_target_from_bod(int k, int track, const BodEstimate& b, const std::string& why);
-  // What target k restarts from: its latest BOD estimate, else the a-priori
-  // (both drifted to t); false when it has neither (mode 2).
-  bool restart_estimate(int k, astro::TimeTT t, astro::Vec6& roe, astro::Mat6& P) const;
+  [[nodiscard]] double bod_distance2(int k, const OsculatingRoe& b) const;
+  void set_target_from_bod(int k, int track, const OsculatingRoe& b, astro::TimeTT t, const std::string& why);
+  // What target k restarts from at t (the observer's osculating elements
+  // then): its latest BOD estimate, else the a-priori (drifted to t); false
+  // when it has neither (mode 2).
+  bool restart_estimate(int k, astro::TimeTT t, const astro::QnsElements& observer_osc, astro::Vec6& roe,
+                        astro::Mat6& P) const;
 
   static Event bearing_event(astro::TimeTT t, EventKind kind, int track, const Eigen::Vector3d& u_eci,
                              const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad);

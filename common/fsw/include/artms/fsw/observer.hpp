@@ -68,6 +68,7 @@ struct ObserverOutputs {
   std::vector<bus::ImpReport> imp;
   std::optional<bus::NavTelemetry> nav;
   std::optional<bus::IslBroadcast> isl;
+  std::vector<bus::BodAttempt> bod;  // BOD attempts of this step (telemetry)
   std::vector<bus::Event> events;
 };
 
