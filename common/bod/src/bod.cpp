@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numeric>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 
@@ -225,7 +226,7 @@ struct Fit {
 };
 
 // Gauss-Newton on the six free components with a0 dlambda = x[2] fixed.
-Fit refine(const BatchModel& model, Vec7 x, const Options& opt) {
+Fit refine_unguarded(const BatchModel& model, Vec7 x, const Options& opt) {
   Fit f;
   const int n = model.size();
   Eigen::Matrix<double, 2, 7> S;
@@ -258,6 +259,19 @@ Fit refine(const BatchModel& model, Vec7 x, const Options& opt) {
   return f;
 }
 
+// The same, with a diverged iterate (an orbit the element conversions
+// refuse) reported as not converged.
+Fit refine(const BatchModel& model, const Vec7& x, const Options& opt) {
+  try {
+    return refine_unguarded(model, x, opt);
+  } catch (const std::exception&) {
+    Fit f;
+    f.x = x;
+    f.ss_az = f.ss_el = std::numeric_limits<double>::infinity();
+    return f;
+  }
+}
+
 Result fail(Result r, Verdict v, std::string why) {
   r.verdict = v;
   r.why = std::move(why);
@@ -266,8 +280,7 @@ Result fail(Result r, Verdict v, std::string why) {
 
 }  // namespace
 
-Result solve(const std::vector<Measurement>& batch_in, const ObserverPrior& prior, const Options& opt) {
-  opt.validate();
+static Result solve_unguarded(const std::vector<Measurement>& batch_in, const ObserverPrior& prior, const Options& opt) {
   Result r;
   r.t_est = prior.t_est;
   std::vector<Measurement> batch;
@@ -493,6 +506,20 @@ Result solve(const std::vector<Measurement>& batch_in, const ObserverPrior& prio
   r.verdict = Verdict::kUsable;
   r.why.clear();
   return r;
+}
+
+Result solve(const std::vector<Measurement>& batch, const ObserverPrior& prior, const Options& opt) {
+  opt.validate();
+  try {
+    return solve_unguarded(batch, prior, opt);
+  } catch (const std::exception& ex) {
+    Result r;
+    r.t_est = prior.t_est;
+    r.measurements = static_cast<int>(batch.size());
+    r.verdict = Verdict::kNotConverged;
+    r.why = std::string("the iteration left the orbits the model can convert: ") + ex.what();
+    return r;
+  }
 }
 
 }  // namespace artms::bod

@@ -638,6 +638,17 @@ void Navigator::run_bod(astro::TimeTT t_est) {
   prior.P_prior = f.covariance().block<5, 5>(1, 1);
   const double span_s = up_.tuning.bod.batch_orbits * astro::orbit_period_s(prior.mean.a_m);
   int attempted = 0;
+  // Usable results of unbound tracks while targets wait for a first estimate.
+  struct Pending {
+    int track;
+    BodEstimate est;
+    OsculatingRoe b;
+    std::size_t record;
+    std::string text;
+    double range_m;
+    int measurements;
+  };
+  std::vector<Pending> pending;
   for (auto it = history_.begin(); it != history_.end();) {
     auto& h = it->second;
     std::erase_if(h, [&](const TrackBearing& b) { return astro::seconds_between(b.t, t_est) > span_s; });
@@ -660,7 +671,25 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     }
     ++attempted;
     ++bod_attempts_;
-    const bod::Result r = bod::solve(batch, prior, bod_opt_);
+    bod::Result r = bod::solve(batch, prior, bod_opt_);
+    // A batch that no single orbit fits (the target manoeuvred, or the track
+    // swapped objects, within it) is tried again on its latest orbit alone.
+    const double orbit_s = astro::orbit_period_s(prior.mean.a_m);
+    if (!r.usable() && r.verdict != bod::Verdict::kTooFewMeasurements && up_.tuning.bod.batch_orbits > 1.0) {
+      std::vector<bod::Measurement> latest;
+      for (const auto& m : batch) {
+        if (astro::seconds_between(m.t, t_est) <= orbit_s) latest.push_back(m);
+      }
+      if (static_cast<int>(latest.size()) >= bod_opt_.min_measurements && latest.size() < batch.size()) {
+        bod::Result again = bod::solve(latest, prior, bod_opt_);
+        if (again.usable()) {
+          messages_.push_back("BOD on IMP track " + std::to_string(track) + ": the " +
+                              std::to_string(batch.size()) + "-bearing batch is not usable (" + r.brief() +
+                              "); its latest orbit alone is");
+          r = std::move(again);
+        }
+      }
+    }
     bus::BodAttempt& rec = bod_records_.emplace_back();
     rec.observer = up_.observer.spacecraft;
     rec.attempt = static_cast<std::uint32_t>(bod_attempts_);
@@ -732,30 +761,33 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       }
       continue;
     }
-    // An unbound track: a target without an estimate first (mode 2), else
-    // the nearest target that has no bound track.
-    int waiting = -1;
-    for (int k = 0; k < static_cast<int>(target_ids_.size()) && waiting < 0; ++k) {
-      if (!has_estimate_[static_cast<std::size_t>(k)] && !tracked(k, t_est)) waiting = k;
+    // An unbound track while targets wait for their first estimate (mode
+    // 2): decided after every track is solved (below).
+    bool any_waiting = false, fits_known = false;
+    for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
+      if (!has_estimate_[static_cast<std::size_t>(k)]) any_waiting = true;
+      else if (!tracked(k, t_est) && bod_distance2(k, b) <= up_.tuning.bod.check_chi2) fits_known = true;
     }
-    if (waiting >= 0) {
-      last_bod_[static_cast<std::size_t>(waiting)] = est;
-      messages_.push_back(head + r.brief());
-      decided(waiting, "SOD initialised from BOD (no estimate before)");
-      set_target_from_bod(waiting, track, b, t_est, "initialised by BOD (no a-priori)");
+    if (any_waiting && !fits_known) {
+      pending.push_back({track, est, b, bod_records_.size() - 1, head + r.brief(), r.range_m, r.measurements});
       continue;
     }
+    // Which target: the nearest in dlambda (a manoeuvre changes a target's
+    // drift and eccentricity at once, its along-track place only slowly);
+    // health check 1 then compares all six ROE.
     int best = -1;
-    double d2_best = 1e300, d2_second = 1e300;
+    double dl_best = 1e300, dl_second = 1e300;
     for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
       if (!has_estimate_[static_cast<std::size_t>(k)] || tracked(k, t_est)) continue;
-      const double d2 = bod_distance2(k, b);
-      if (d2 < d2_best) {
-        d2_second = d2_best;
-        d2_best = d2;
+      const int o = f.layout().target_offset(k);
+      const double dl = astro::wrap_pi(b.roe[1] - f.state()[o + 1]);
+      const double d2 = dl * dl / (b.P(1, 1) + f.covariance()(o + 1, o + 1));
+      if (d2 < dl_best) {
+        dl_second = dl_best;
+        dl_best = d2;
         best = k;
-      } else if (d2 < d2_second) {
-        d2_second = d2;
+      } else if (d2 < dl_second) {
+        dl_second = d2;
       }
     }
     if (best < 0) {
@@ -763,13 +795,15 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       messages_.push_back(head + r.brief() + "; not used: every target has a bound IMP track");
       continue;
     }
-    if (d2_second < 4.0 * d2_best && d2_best > 1.0) {
-      std::snprintf(buf, sizeof buf, "; not used: two targets without a bound track fit it (squared distances %.1f, %.1f)",
-                    d2_best, d2_second);
+    if (dl_second < 9.0 * dl_best && dl_best > 1.0) {
+      std::snprintf(buf, sizeof buf,
+                    "; not used: two targets without a bound track are as near in dlambda (squared distances %.1f, %.1f)",
+                    dl_best, dl_second);
       decided(-1, std::string("not used") + buf);
       messages_.push_back(head + r.brief() + buf);
       continue;
     }
+    const double d2_best = bod_distance2(best, b);
     last_bod_[static_cast<std::size_t>(best)] = est;
     const int off = f.layout().target_offset(best);
     const double sigma_sod = std::sqrt(f.covariance()(off + 1, off + 1));
@@ -799,6 +833,50 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       std::snprintf(buf, sizeof buf, "IMP track %d bound to target %s by BOD (squared distance %.1f)", track,
                     target_ids_[static_cast<std::size_t>(best)].c_str(), d2_best);
       messages_.push_back(buf);
+    }
+  }
+  // Targets that wait for a first estimate (mode 2): one waiting target
+  // takes the solution with the most bearings; several are told apart by
+  // range only (the uplink lists them nearest first), so they are
+  // initialised together when as many solutions as targets are at hand.
+  std::vector<int> waiting;
+  for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
+    if (!has_estimate_[static_cast<std::size_t>(k)]) waiting.push_back(k);
+  }
+  if (!pending.empty()) {
+    std::vector<std::pair<int, std::size_t>> assign;  // (target, pending index)
+    if (waiting.size() == 1) {
+      std::size_t pick = 0;
+      for (std::size_t i = 1; i < pending.size(); ++i) {
+        if (pending[i].measurements > pending[pick].measurements) pick = i;
+      }
+      assign.emplace_back(waiting.front(), pick);
+    } else if (pending.size() == waiting.size()) {
+      std::vector<std::size_t> order(pending.size());
+      for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+      std::sort(order.begin(), order.end(), [&](auto a, auto b) { return pending[a].range_m < pending[b].range_m; });
+      for (std::size_t i = 0; i < order.size(); ++i) assign.emplace_back(waiting[i], order[i]);
+    }
+    for (std::size_t i = 0; i < pending.size(); ++i) {
+      Pending& p = pending[i];
+      const auto it = std::find_if(assign.begin(), assign.end(), [&](const auto& a) { return a.second == i; });
+      bus::BodAttempt& rec = bod_records_[p.record];
+      messages_.push_back(p.text);
+      if (it == assign.end()) {
+        rec.action = waiting.size() > 1
+                         ? bus::bounded(std::to_string(waiting.size()) + " targets wait for BOD and " +
+                                            std::to_string(pending.size()) +
+                                            " usable solutions: told apart by range only when as many as targets",
+                                        bus::kEventTextChars)
+                         : "not used: another track of the batch has more bearings";
+        messages_.push_back("BOD: not used: " + rec.action);
+        continue;
+      }
+      const int k = it->first;
+      last_bod_[static_cast<std::size_t>(k)] = p.est;
+      rec.target = target_ids_[static_cast<std::size_t>(k)];
+      rec.action = "SOD initialised from BOD (no estimate before)";
+      set_target_from_bod(k, p.track, p.b, t_est, "initialised by BOD (no a-priori)");
     }
   }
   if (attempted == 0) {

@@ -41,7 +41,8 @@ TopicSet::TopicSet(const dds::Participant& p)
       event(p, &artms_msg_Event_desc, "artms_event"),
       imp_report(p, &artms_msg_ImpReport_desc, "artms_imp_report"),
       isl_relay(p, &artms_msg_IslBroadcast_desc, "artms_isl_relay"),
-      isl_outcome(p, &artms_msg_IslOutcome_desc, "artms_isl_outcome") {}
+      isl_outcome(p, &artms_msg_IslOutcome_desc, "artms_isl_outcome"),
+      bod_attempt(p, &artms_msg_BodAttempt_desc, "artms_bod_attempt") {}
 
 dds::QosProfile clock_qos() { return {true, true, 1, 0, {}}; }
 dds::QosProfile step_done_qos() { return {true, true, 1, 0, {}}; }
@@ -75,6 +76,7 @@ Topology topology(const config::Scenario& s) {
       {"event", 1},                     // recorder
       {"isl_broadcast", 1},             // crosslink emulator (partition isl-tx)
       {"isl_outcome", 1},               // recorder
+      {"bod_attempt", 1},               // recorder (BOD telemetry)
   };
   for (const auto& [from, to] : config::isl_links(s)) {
     t.isl_relay_readers[from + "->" + to] = config::isl_link_up_at_epoch(s, from, to) ? 1 : 0;

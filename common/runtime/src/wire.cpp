@@ -366,4 +366,64 @@ void write(dds::Writer<artms_msg_Event>& w, const bus::Event& e) {
   w.write(m);
 }
 
+bus::BodAttempt from_wire(const artms_msg_BodAttempt& m) {
+  bus::BodAttempt b;
+  b.observer = str(m.observer);
+  b.attempt = m.attempt;
+  b.t_est_tt_ns = m.t_est_tt_ns;
+  b.track = m.track;
+  b.target = str(m.target);
+  b.verdict = static_cast<bus::BodVerdict>(m.verdict);  // raw: the recorder refuses unknown codes
+  b.why = str(m.why);
+  b.action = str(m.action);
+  b.measurements = m.measurements;
+  b.iterations = m.iterations;
+  b.residual_rms_rad = m.residual_rms_rad;
+  b.correlation_inflation = m.correlation_inflation;
+  b.a_observer_m = m.a_observer_m;
+  b.range_m = m.range_m;
+  b.sigma_range_m = m.sigma_range_m;
+  copy(m.a_roe_mean_m, b.a_roe_mean_m);
+  copy(m.covariance_a_roe_m2, b.covariance_a_roe_m2);
+  b.mahalanobis2 = m.mahalanobis2;
+  for (std::uint32_t k = 0; k < m.curve._length; ++k) {
+    const auto& x = m.curve._buffer[k];
+    b.curve.push_back({x.a_dlambda_m, x.residual_rms_rad, x.chi2, x.converged});
+  }
+  return b;
+}
+artms_msg_BodAttempt to_wire(const bus::BodAttempt& b, std::vector<artms_msg_BodSample>& curve) {
+  artms_msg_BodAttempt m{};
+  set(m.observer, b.observer);
+  m.attempt = b.attempt;
+  m.t_est_tt_ns = b.t_est_tt_ns;
+  m.track = b.track;
+  set(m.target, b.target);
+  m.verdict = static_cast<std::uint8_t>(b.verdict);
+  set(m.why, b.why);
+  set(m.action, b.action);
+  m.measurements = b.measurements;
+  m.iterations = b.iterations;
+  m.residual_rms_rad = b.residual_rms_rad;
+  m.correlation_inflation = b.correlation_inflation;
+  m.a_observer_m = b.a_observer_m;
+  m.range_m = b.range_m;
+  m.sigma_range_m = b.sigma_range_m;
+  copy(b.a_roe_mean_m, m.a_roe_mean_m);
+  copy(b.covariance_a_roe_m2, m.covariance_a_roe_m2);
+  m.mahalanobis2 = b.mahalanobis2;
+  curve.clear();
+  for (std::size_t k = 0; k < b.curve.size() && k < bus::kMaxBodSamples; ++k) {
+    const auto& x = b.curve[k];
+    curve.push_back({x.a_dlambda_m, x.residual_rms_rad, x.chi2, x.converged});
+  }
+  view(m.curve, curve);
+  return m;
+}
+void write(dds::Writer<artms_msg_BodAttempt>& w, const bus::BodAttempt& b) {
+  std::vector<artms_msg_BodSample> curve;
+  const artms_msg_BodAttempt m = to_wire(b, curve);
+  w.write(m);
+}
+
 }  // namespace artms::runtime

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "artms/astro/constants.hpp"
 #include "artms/sim/services.hpp"
 
 namespace artms::sim {
@@ -26,6 +27,29 @@ std::string fmt(const char* format, ...) {
 }
 
 std::string utc(std::int64_t t) { return astro::utc_string(astro::TimeTT{t}, 3); }
+
+// Free text in a CSV field: the run folder's CSV files are never quoted, so
+// separators, quotes and line breaks are replaced.
+std::string csv_text(const std::string& s) {
+  std::string out = s;
+  for (char& c : out) {
+    if (c == ',') {
+      c = ';';
+    } else if (c == '"') {
+      c = '\'';
+    } else if (c == '\n' || c == '\r') {
+      c = ' ';
+    }
+  }
+  return out;
+}
+
+// A number that may be absent: empty when not finite (or when `absent`).
+std::string opt_num(const char* format, double v, bool absent = false) {
+  return absent || !std::isfinite(v) ? std::string() : fmt(format, v);
+}
+
+constexpr double kRadToArcsec = 1.0 / astro::kArcsecToRad;
 
 // SAMUS decides a measurement at most an hour or so after its frame
 // (initiation, confirmation): measurements are written two hours behind.
@@ -102,6 +126,23 @@ Recorder::Recorder(const config::Scenario& sc, const std::string& out_dir)
       dir / "isl.csv", "t_utc,t_tt_ns,sender,receiver,sequence,t_sent_tt_ns,source,measurements,range_m,status,reason");
   links_ = std::make_unique<Sink>(dir / "links.csv", "t_utc,t_tt_ns,from,to,up,reason");
   events_ = std::make_unique<Sink>(dir / "events.log", "");
+  // BOD telemetry (modes 1-3 run BOD): one row per attempt, one per sample
+  // of its residual curve.
+  bool any_bod = false;
+  for (const auto& o : sc.observers) any_bod = any_bod || (o.mode >= 1 && o.mode <= 3);
+  if (any_bod) fs::create_directories(dir / "bod");
+  for (const auto& o : sc.observers) {
+    if (o.mode < 1 || o.mode > 3) continue;
+    bod_[o.spacecraft] = std::make_unique<Sink>(
+        dir / "bod" / (o.spacecraft + ".csv"),
+        "t_utc,t_tt_ns,observer,attempt,track,target,verdict,verdict_name,measurements,iterations,"
+        "residual_rms_arcsec,correlation_inflation,a_observer_m,range_m,sigma_range_m,"
+        "a_da_m,a_dlambda_m,a_dex_m,a_dey_m,a_dix_m,a_diy_m,"
+        "sigma_a_da_m,sigma_a_dlambda_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_dix_m,sigma_a_diy_m,"
+        "mahalanobis2,action,why");
+    bod_curves_[o.spacecraft] = std::make_unique<Sink>(dir / "bod" / (o.spacecraft + "_curves.csv"),
+                                                       "attempt,sample,a_dlambda_m,residual_rms_arcsec,chi2,converged");
+  }
   frames_ = std::make_unique<Sink>(dir / "frames.csv",
                                    "t_utc,t_tt_ns,observer,frame,time_tag_tt_ns,dropped,exclusion,stars,target,x_px,"
                                    "y_px,vmag,range_m,visible,reason");
@@ -221,6 +262,57 @@ void Recorder::add(const bus::IslOutcome& o) {
                 o.measurements, o.range_m, o.delivered ? "delivered" : "dropped", o.reason.c_str()));
 }
 
+void Recorder::add(const bus::BodAttempt& b) {
+  const auto it = bod_.find(b.observer);
+  if (it == bod_.end() || static_cast<std::uint8_t>(b.verdict) > bus::kMaxBodVerdict) {
+    ++rejected_;  // an observer without BOD, or an unknown verdict code
+    return;
+  }
+  // The IDL's bounds, so that the files do not depend on whether it crossed DDS.
+  const std::size_t samples = std::min(b.curve.size(), bus::kMaxBodSamples);
+  bool finite = std::isfinite(b.residual_rms_rad) && std::isfinite(b.correlation_inflation) &&
+                std::isfinite(b.a_observer_m) && std::isfinite(b.range_m) && std::isfinite(b.sigma_range_m) &&
+                std::isfinite(b.mahalanobis2);
+  for (double v : b.a_roe_mean_m) finite = finite && std::isfinite(v);
+  for (double v : b.covariance_a_roe_m2) finite = finite && std::isfinite(v);
+  for (std::size_t k = 0; k < samples; ++k) {
+    const auto& c = b.curve[k];
+    // An unconverged sample may carry non-finite residuals (written empty).
+    finite = finite && std::isfinite(c.a_dlambda_m) &&
+             (!c.converged || (std::isfinite(c.residual_rms_rad) && std::isfinite(c.chi2)));
+  }
+  if (!finite) {
+    ++rejected_;
+    return;
+  }
+  const auto sd = [&](std::size_t i) { return std::sqrt(std::max(0.0, b.covariance_a_roe_m2[i * 6 + i])); };
+  std::string line = fmt("%s,%lld,%s,%u,%d,%s,%d,%s,%u,%u,%.4f,%.4f,%.3f,%.3f,%.3f", utc(b.t_est_tt_ns).c_str(),
+                         static_cast<long long>(b.t_est_tt_ns), b.observer.c_str(), b.attempt, b.track,
+                         csv_text(bus::bounded(b.target, bus::kIdChars)).c_str(), static_cast<int>(b.verdict),
+                         bus::to_string(b.verdict), b.measurements, b.iterations, b.residual_rms_rad * kRadToArcsec,
+                         b.correlation_inflation, b.a_observer_m, b.range_m, b.sigma_range_m);
+  for (std::size_t i = 0; i < 6; ++i) line += fmt(",%.3f", b.a_roe_mean_m[i]);
+  for (std::size_t i = 0; i < 6; ++i) line += fmt(",%.3f", sd(i));
+  // mahalanobis2 < 0: health check 1 was not made (empty).
+  for (const std::string& field : {opt_num("%.3f", b.mahalanobis2, b.mahalanobis2 < 0.0),
+                                   csv_text(bus::bounded(b.action, bus::kEventTextChars)),
+                                   csv_text(bus::bounded(b.why, bus::kEventTextChars))}) {
+    line += ',';
+    line += field;
+  }
+  it->second->add(b.t_est_tt_ns, b.observer, std::move(line));
+  auto& curves = *bod_curves_.at(b.observer);
+  for (std::size_t k = 0; k < samples; ++k) {
+    const auto& c = b.curve[k];
+    std::string row = fmt("%u,%zu,%.3f,", b.attempt, k, c.a_dlambda_m);
+    row += opt_num("%.4f", c.residual_rms_rad * kRadToArcsec);
+    row += ',';
+    row += opt_num("%.3f", c.chi2);
+    row += c.converged ? ",1" : ",0";
+    curves.add(b.t_est_tt_ns, b.observer, std::move(row));
+  }
+}
+
 void Recorder::flush(std::int64_t limit) {
   for (auto& [id, sink] : nav_) sink->flush(limit);
   for (auto& [id, sink] : imp_attitude_) sink->flush(limit);
@@ -232,6 +324,8 @@ void Recorder::flush(std::int64_t limit) {
   links_->flush(limit);
   events_->flush(limit);
   frames_->flush(limit);
+  for (auto& [id, sink] : bod_) sink->flush(limit);
+  for (auto& [id, sink] : bod_curves_) sink->flush(limit);
 }
 
 void Recorder::on_tick(const bus::Tick& tick) {

@@ -78,7 +78,7 @@ struct Options {
   // than this over the samples either side of its minimum.
   double min_curve_rise_chi2 = 4.0;
   // Tolerances of a usable result (paper: "within state and uncertainty tolerances").
-  double max_residual_rms_rad = 60.0 * 4.84813681109536e-6;  // post-fit RMS of a bearing angle
+  double max_residual_rms_rad = 15.0 * 4.84813681109536e-6;  // post-fit RMS of a bearing angle
   double max_a_da_m = 1000.0;                                 // |a da|
   double max_sigma_range_fraction = 0.3;                      // sigma(a dlambda) / (a |dlambda|)
   double max_sigma_a_da_m = 200.0;                            // sigma(a da)

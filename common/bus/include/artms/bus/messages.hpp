@@ -233,6 +233,20 @@ enum class BodVerdict : std::uint8_t {
   kFlatResidualCurve = 5,
   kOutsideTolerances = 6,
 };
+inline constexpr std::uint8_t kMaxBodVerdict = 6;
+// The words of bod/<observer>.csv's verdict_name column.
+inline const char* to_string(BodVerdict v) {
+  switch (v) {
+    case BodVerdict::kUsable: return "usable";
+    case BodVerdict::kTooFewMeasurements: return "too_few_measurements";
+    case BodVerdict::kBadInput: return "bad_input";
+    case BodVerdict::kNotConverged: return "not_converged";
+    case BodVerdict::kMinimumAtEdge: return "minimum_at_edge";
+    case BodVerdict::kFlatResidualCurve: return "flat_residual_curve";
+    case BodVerdict::kOutsideTolerances: return "outside_tolerances";
+  }
+  return "unknown";
+}
 struct BodSample {
   double a_dlambda_m = 0.0;
   double residual_rms_rad = 0.0;

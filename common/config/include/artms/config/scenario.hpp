@@ -138,7 +138,7 @@ struct BodTuning {
   int max_measurements = 200;
   double batch_orbits = 2.0;         // paper: over 1-2 orbits (the latest ones)
   double max_sigma_range_fraction = 0.3;  // uncertainty tolerance of a usable result
-  double max_residual_arcsec = 60.0;      // post-fit RMS tolerance
+  double max_residual_arcsec = 15.0;      // post-fit RMS tolerance (a few times IMP's ~3")
   double check_chi2 = 22.46;         // health check 1: squared Mahalanobis distance, 6 dof 99.9 %
 };
 struct SodTuning {

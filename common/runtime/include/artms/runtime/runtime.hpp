@@ -25,7 +25,7 @@ namespace artms::runtime {
 struct TopicSet {
   explicit TopicSet(const dds::Participant& p);
   dds::Topic clock_tick, step_done, truth_state, gnss_fix, camera_frame, frame_truth,
-      isl_broadcast, nav_telemetry, link_state, event, imp_report, isl_relay, isl_outcome;
+      isl_broadcast, nav_telemetry, link_state, event, imp_report, isl_relay, isl_outcome, bod_attempt;
 };
 dds::QosProfile clock_qos();      // reliable, transient-local, keep last 1
 dds::QosProfile step_done_qos();  // reliable, transient-local, keep last 1 per service

@@ -156,9 +156,12 @@ class Crosslink {
 };
 
 // Recorder: the run folder (DESIGN.md section 8): truth.oem, nav/, gnss.csv,
-// isl.csv, links.csv, events.log, frames.csv, imp/<observer>/. Samples are
-// buffered and written in (time, source, arrival) order once every sample
-// stamped before a time is known (flush).
+// isl.csv, links.csv, events.log, frames.csv, imp/<observer>/, bod/ (the BOD
+// attempts of every observer in navigation mode 1, 2 or 3; the files exist,
+// header only, when no attempt was made). Samples are buffered and written
+// in (time, source, arrival) order once every sample stamped before a time
+// is known (flush). Malformed samples (unknown observer, unknown code,
+// non-finite numbers where numbers are required) are counted in rejected().
 class Recorder {
  public:
   Recorder(const config::Scenario& sc, const std::string& out_dir);
@@ -173,6 +176,9 @@ class Recorder {
   void add(const bus::FrameTruth& m);
   void add(const bus::ImpReport& m);
   void add(const bus::IslOutcome& m);
+  // Stamped with its estimation epoch t_est (behind the clock): written at
+  // the first flush after it arrived, the same in both run modes.
+  void add(const bus::BodAttempt& m);
   // Writes everything stamped before t_limit (IMP measurements two hours
   // behind: SAMUS decides them late); everything with kAll.
   static constexpr std::int64_t kAll = std::numeric_limits<std::int64_t>::max();
@@ -188,7 +194,7 @@ class Recorder {
  private:
   class Sink;
   const config::Scenario& sc_;
-  std::map<std::string, std::unique_ptr<Sink>> nav_, imp_attitude_, imp_meas_;
+  std::map<std::string, std::unique_ptr<Sink>> nav_, imp_attitude_, imp_meas_, bod_, bod_curves_;
   std::unique_ptr<Sink> targets_, gnss_, isl_, links_, events_, frames_;
   io::OemStreamWriter truth_;
   std::size_t rejected_ = 0;
