@@ -3,10 +3,13 @@
 
 usage: artms-report RUN_DIR [--out DIR]   (DIR defaults to RUN_DIR/plots)
 
-Reads RUN_DIR/eval/targets.csv, RUN_DIR/eval/observers.csv and
-RUN_DIR/summary.json (any of them may be missing or partial) and writes
+Reads RUN_DIR/eval/targets.csv, RUN_DIR/eval/observers.csv,
+RUN_DIR/summary.json and RUN_DIR/bod/ (any of them may be missing or partial)
+and writes
   roe_<observer>_<target>.png  ROE errors and +-1 sigma, measurement epochs
   observer_<observer>.png      absolute position / velocity error and 1 sigma
+  bod_curves_<observer>.png    BOD residual versus a*dlambda, one line per attempt
+  bod_range_<observer>.png     BOD range and its error against truth at each attempt
   summary.png, summary.md      final figures against the StarFOX flight results
 Exit status: 0 when the summary was written, 1 when there was nothing to
 summarise, 2 when RUN_DIR is missing or unreadable. Uses only Debian's
@@ -38,7 +41,8 @@ _TOOLS = _artms_tools_dir()
 if _TOOLS is None:
     sys.exit("artms-report: cannot find the artms_tools package (tools/python); set ARTMS_PYTHON_DIR to that folder")
 sys.path.insert(0, os.path.abspath(_TOOLS))
-from artms_tools.codes import NavHealth  # noqa: E402
+from artms_tools.codes import BodVerdict, NavHealth  # noqa: E402
+from artms_tools.oem import read_oem  # noqa: E402
 from artms_tools.runfolder import RunFolderError, read_csv as read_run_csv  # noqa: E402
 
 import matplotlib  # noqa: E402
@@ -414,6 +418,182 @@ def plot_observer(obs, rows, t0, period, out_dir):
     return path
 
 
+# ---------------------------------------------------------------- BOD
+
+def bod_observers(run_dir):
+    """Observers with a bod/<observer>_curves.csv."""
+    d = os.path.join(run_dir, "bod")
+    tail = "_curves.csv"
+    return sorted(f[:-len(tail)] for f in os.listdir(d) if f.endswith(tail)) if os.path.isdir(d) else []
+
+
+def usable(row):
+    return row.get("verdict") == str(int(BodVerdict.USABLE))
+
+
+def plot_bod_curves(obs, attempts, curves, out_dir):
+    """The paper's residual versus a*dlambda: one line per attempt (dotted where a sample did not
+    converge), the chosen sample (the converged one with the smallest residual) marked o, a usable
+    attempt's refined estimate x."""
+    info = {r.get("attempt"): r for r in attempts or []}
+    by_attempt = {}
+    for r in curves:
+        by_attempt.setdefault(r.get("attempt"), []).append(r)
+    keys = sorted(by_attempt, key=fnum)
+    colours = plt.cm.viridis(np.linspace(0.0, 0.9, max(len(keys), 1)))
+    fig, ax = plt.subplots(figsize=(8.5, 5.5))
+    for colour, n in zip(colours, keys):
+        c = columns(by_attempt[n], ["a_dlambda_m", "residual_rms_arcsec", "converged"])
+        x, y, conv = c["a_dlambda_m"] / 1e3, c["residual_rms_arcsec"], c["converged"] == 1
+        a = info.get(n, {})
+        ax.plot(x, y, color=colour, lw=0.6, ls=":")
+        ax.plot(x, np.where(conv, y, np.nan), color=colour, lw=1.2,
+                label=f"{n}: {(a.get('t_utc') or '?')[:16]} {a.get('verdict_name') or '?'}")
+        ok = conv & np.isfinite(y)
+        if ok.any():
+            i = int(np.argmin(np.where(ok, y, np.inf)))
+            ax.plot(x[i], y[i], "o", color=colour, ms=6, mec="black", mew=0.6)
+        if a and usable(a):
+            ax.plot(fnum(a.get("a_dlambda_m")) / 1e3, fnum(a.get("residual_rms_arcsec")), "x", color="black", ms=7)
+    if np.isfinite(columns(curves, ["residual_rms_arcsec"])["residual_rms_arcsec"]).any():
+        ax.set_yscale("log")
+    ax.set_xlabel(r"$a\delta\lambda$ [km]")
+    ax.set_ylabel("residual RMS [arcsec]")
+    ax.grid(True, which="both", lw=0.3, alpha=0.6)
+    if len(keys) <= 12:
+        ax.legend(fontsize=7, title="attempt: t_est (UTC) verdict", title_fontsize=7, loc="upper right")
+    ax.set_title(f"{obs} BOD residual curves ({len(keys)} attempts; o chosen sample, x estimate)", fontsize=11)
+    fig.tight_layout()
+    path = os.path.join(out_dir, f"bod_curves_{safe(obs)}.png")
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+class TrueRange:
+    """True observer-target distance at any time: from truth.oem (interpolated between epochs), else
+    from eval/targets.csv's range_m (the true range at each navigation step)."""
+
+    def __init__(self, run_dir, trows):
+        self.source, self.segments, self.trows = None, {}, trows or []
+        path = os.path.join(run_dir, "truth.oem")
+        if os.path.isfile(path):
+            try:
+                self.segments = {s.object_name: s for s in read_oem(path).segments}
+                self.source = "truth.oem"
+            except (OSError, RunFolderError) as e:
+                print(f"unreadable: {e} (BOD range errors from eval/targets.csv)")
+        if not self.segments and self.trows:
+            self.source = "eval/targets.csv"
+
+    def series(self, obs, tgt):
+        """(t_tt_ns, range_m) arrays, or None."""
+        if obs in self.segments and tgt in self.segments:
+            o, t = self.segments[obs], self.segments[tgt]
+            if o.t_tt_ns == t.t_tt_ns:
+                return (np.array(o.t_tt_ns, dtype=float),
+                        np.linalg.norm(np.array(t.r_m) - np.array(o.r_m), axis=1))
+        rows = [r for r in self.trows if r.get("observer") == obs and r.get("target") == tgt]
+        if rows:
+            c = columns(rows, ["t_tt_ns", "range_m"])
+            ok = np.isfinite(c["t_tt_ns"]) & np.isfinite(c["range_m"])
+            if ok.any():
+                order = np.argsort(c["t_tt_ns"][ok], kind="stable")
+                return c["t_tt_ns"][ok][order], c["range_m"][ok][order]
+        return None
+
+
+def orbit_mean(t_ns, rng, t, period):
+    """Secular part of the true range at t: a least-squares fit of c0 + c1 dt + a sin(n dt) + b cos(n dt)
+    (n = 2 pi / period) to the samples within one period of t, evaluated at t (c0): the orbit-averaged
+    separation that BOD's mean a*dlambda estimates. None with less than 3/4 of an orbit of samples."""
+    dt = (t_ns - t) * 1e-9
+    w = np.abs(dt) <= period
+    if w.sum() < 8 or np.ptp(dt[w]) < 0.75 * period:
+        return None
+    n = 2.0 * math.pi / period
+    A = np.column_stack([np.ones(w.sum()), dt[w], np.sin(n * dt[w]), np.cos(n * dt[w])])
+    return float(np.linalg.lstsq(A, rng[w], rcond=None)[0][0])
+
+
+def plot_bod_range(obs, attempts, truth, t0, period, out_dir):
+    """BOD range (a*|dlambda| of the mean ROE) +-1 sigma at each attempt with the true range (top) and its
+    error (bottom) against the true range's orbit mean (black; what BOD estimates) and against the
+    instantaneous true distance at t_est (grey x); usable attempts filled, the others open. None when no
+    attempt has a known truth."""
+    rows = [r for r in attempts if fnum(r.get("range_m")) > 0 and r.get("target")]
+    series = {tgt: truth.series(obs, tgt) for tgt in sorted({r["target"] for r in rows})}
+    rows = [r for r in rows if series.get(r["target"]) is not None
+            and series[r["target"]][0][0] <= fnum(r.get("t_tt_ns")) <= series[r["target"]][0][-1]]
+    if not rows:
+        return None
+    fig, axes = plt.subplots(2, 1, figsize=(8.5, 6.5), sharex=True)
+    x_of = lambda t_ns: (t_ns * 1e-9 - t0) / period  # noqa: E731
+    for tgt, (t_ns, rng) in ((k, v) for k, v in series.items() if v is not None):
+        axes[0].plot(x_of(t_ns), rng / 1e3, color="grey", lw=0.8, label=f"true range to {tgt} ({truth.source})")
+    means = 0
+    for r in rows:
+        t_ns, rng = series[r["target"]]
+        t = fnum(r.get("t_tt_ns"))
+        x, est, sig = x_of(t), fnum(r.get("range_m")), fnum(r.get("sigma_range_m"))
+        face = "black" if usable(r) else "none"
+        axes[0].errorbar(x, est / 1e3, yerr=sig / 1e3, fmt="o", color="black", mfc=face, ms=4, capsize=3, lw=0.8)
+        axes[1].plot(x, est - float(np.interp(t, t_ns, rng)), "x", color="grey", ms=6)
+        mean = orbit_mean(t_ns, rng, t, period)
+        if mean is not None:
+            means += 1
+            axes[0].plot(x, mean / 1e3, "_", color="tab:red", ms=14, mew=1.5)
+            axes[1].errorbar(x, est - mean, yerr=sig, fmt="o", color="black", mfc=face, ms=4, capsize=3, lw=0.8)
+    handles, labels = axes[0].get_legend_handles_labels()
+    handles.append(plt.Line2D([], [], ls="none", marker="_", color="tab:red", ms=10, mew=1.5))
+    labels.append("its orbit mean at t_est")
+    axes[0].legend(handles, labels, fontsize=8, loc="best")
+    axes[0].set_ylabel("range [km]")
+    axes[1].axhline(0.0, color="grey", lw=0.5)
+    axes[1].set_ylabel("BOD range error [m]")
+    axes[1].legend([plt.Line2D([], [], ls="none", marker="o", color="black"),
+                    plt.Line2D([], [], ls="none", marker="x", color="grey")],
+                   [r"against the orbit mean, $\pm1\sigma$" + ("" if means == len(rows) else f" ({means})"),
+                    "against the true range at t_est"], fontsize=8, loc="best")
+    axes[1].set_xlabel(f"orbits since first row (period {period:.0f} s)")
+    for ax in axes:
+        ax.grid(True, lw=0.3, alpha=0.6)
+    n_ok = sum(usable(r) for r in rows)
+    fig.suptitle(f"{obs} BOD range at each attempt ({len(rows)}, {n_ok} usable: filled)", fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.96))
+    path = os.path.join(out_dir, f"bod_range_{safe(obs)}.png")
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_bod(run_dir, trows, summary, t0, out_dir):
+    written = []
+    truth = None
+    for obs in bod_observers(run_dir):
+        curves = read_csv(os.path.join(run_dir, "bod", f"{obs}_curves.csv"), "no BOD residual curves")
+        attempts = read_csv(os.path.join(run_dir, "bod", f"{obs}.csv"), "no BOD range plot") or []
+        if curves:
+            try:
+                written.append(plot_bod_curves(obs, attempts, curves, out_dir))
+            except Exception as e:
+                warn(f"BOD curves plot {obs} failed: {type(e).__name__}: {e}")
+        if not attempts:
+            continue
+        try:
+            truth = truth or TrueRange(run_dir, trows)
+            t_first = [fnum(r.get("t_tt_ns")) * 1e-9 for r in attempts]
+            start = t0 if t0 is not None else min(t for t in t_first if math.isfinite(t))
+            path = plot_bod_range(obs, attempts, truth, start, period_s(summary, obs), out_dir)
+            if path:
+                written.append(path)
+            else:
+                print(f"no truth for the BOD attempts of {obs} (truth.oem, eval/targets.csv): no BOD range plot")
+        except Exception as e:
+            warn(f"BOD range plot {obs} failed: {type(e).__name__}: {e}")
+    return written
+
+
 def safe(name):
     return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name)) or "_"
 
@@ -579,6 +759,7 @@ def main(argv=None):
                 written.append(plot_observer(obs, by_obs[obs], t0, period_s(summary, obs), out_dir))
             except Exception as e:
                 warn(f"observer plot {obs} failed: {type(e).__name__}: {e}")
+    written += plot_bod(run_dir, trows, summary, t0 if times else None, out_dir)
 
     if not pairs:
         print("nothing to summarise: no observer/target pairs in eval/targets.csv or summary.json")

@@ -3,7 +3,7 @@
 
 usage: campaign.py SCENARIO.yaml --seeds N (--orbits X | --duration 6h) --out DIR
                    [--first-seed 1] [--jobs J] [--in-process | --dds] [--bin build/bin] [--rerun]
-                   [--from-orbit X]
+                   [--from-orbit X] [--init-within-orbits X]
                    [--dask-local N | --dask-scheduler tcp://HOST:PORT]
 
 Each seed s is `artms-swarm run SCENARIO --seed s (--orbits X | --duration D) --out DIR/seed_<s>`
@@ -179,6 +179,9 @@ def parse_args(argv):
     ap.add_argument("--seed-plots", action="store_true",
                     help="also draw every seed's own plots (artms-report, ~3 s a seed); by default only the "
                          "campaign's plots are drawn (artms-swarm run --no-report)")
+    ap.add_argument("--init-within-orbits", type=float, metavar="X",
+                    help="count a seed initialised when its first estimate of a target came within X orbits "
+                         "(mode 2: BOD's autonomous initialisation; default: at any time)")
     ap.add_argument("--from-orbit", type=float, metavar="X",
                     help="also report the fraction of steps inside the band from orbit X on")
     dask = ap.add_mutually_exclusive_group()
@@ -403,7 +406,7 @@ def main(argv=None):
     say(f"{len(results)} seeds run, {len(reused)} reused, {len(failed)} failed, in {wall:.1f} s")
 
     meta = {"scenario_file": args.scenario, "scenario_sha256": scenario_sha, "span": span, "mode": mode,
-            "seeds_requested": seeds, "from_orbit": args.from_orbit}
+            "seeds_requested": seeds, "from_orbit": args.from_orbit, "init_within_orbits": args.init_within_orbits}
     failures = [{"seed": r["seed"], "exit_code": r["exit_code"], "problem": r["problem"],
                  "log": os.path.join("logs", f"seed_{r['seed']}.log"), "output_tail": r["tail"]} for r in failed]
     try:
@@ -517,12 +520,53 @@ def summarise(out, seeds, meta, failures):
                             "per_seed": conv_seed},
             "frac_within_3sigma": {"per_seed": frac3, "min_per_seed": mins,
                                    "seeds_min_at_least_0.99": sum(1 for m in mins if m is not None and m >= 0.99)},
+            "initialisation": initialisation_entry(seeds, tg, meta.get("init_within_orbits")),
             "nees_mean_per_seed": [t.get("nees_mean") for t in tg],
             "seeds_with_target": [s for s, t in zip(seeds, tg) if t],
         })
         plot_errors(out, obs, tgt, seeds, tg)
+        plot_initial_errors(out, obs, tgt, tg)
         out_json["targets"][f"{obs}/{tgt}"] = entry
     return out_json
+
+
+def initialisation_entry(seeds, tg, within_orbits):
+    """The first estimate of each seed (mode 2: BOD's initialisation): when, its dlambda error against its
+    own 1-sigma, and the seeds initialised within `within_orbits` (None: any time)."""
+    first = [t.get("first_estimate_orbits") for t in tg]
+    err = [t.get("initial_dlambda_error_pct") for t in tg]
+    sig = [t.get("initial_dlambda_sigma_pct") for t in tg]
+    in3 = [t.get("initial_within_3sigma") for t in tg]
+    ok = [f is not None and (within_orbits is None or f <= within_orbits) for f in first]
+    n = len(seeds)
+    return {"within_orbits": within_orbits, "initialised": sum(ok), "seeds": n,
+            "fraction_initialised": sum(ok) / n if n else None,
+            "initial_within_3sigma": sum(1 for x in in3 if x), "fraction_initial_within_3sigma":
+            sum(1 for x in in3 if x) / n if n else None,
+            "first_estimate_orbits": first, "initial_dlambda_error_pct": err, "initial_dlambda_sigma_pct": sig,
+            "not_initialised_seeds": [s for s, o in zip(seeds, ok) if not o]}
+
+
+def plot_initial_errors(out, obs, tgt, tg):
+    """Histogram of the first estimate's dlambda error in units of its own 1-sigma (plots/)."""
+    z = [t["initial_dlambda_error_pct"] / t["initial_dlambda_sigma_pct"] for t in tg
+         if t and t.get("initial_dlambda_sigma_pct")]
+    if not z:
+        return
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.hist(z, bins=[x * 0.5 for x in range(-10, 11)], color="tab:blue", edgecolor="black")
+    for x in (-3, 3):
+        ax.axvline(x, color="tab:red", linestyle="--")
+    ax.set_xlabel("first estimate: a*dlambda error / 1-sigma")
+    ax.set_ylabel("seeds")
+    ax.set_title(f"{obs} -> {tgt}: {sum(1 for v in z if abs(v) <= 3)} of {len(z)} inside 3-sigma")
+    fig.tight_layout()
+    os.makedirs(os.path.join(out, "plots"), exist_ok=True)
+    fig.savefig(os.path.join(out, "plots", f"initial_error_{obs}_{tgt}.png"), dpi=110)
+    plt.close(fig)
 
 
 def nis_entry(runs, t0, period_s, start, start_med):

@@ -191,6 +191,12 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     j["final_range_m"] = R;
     j["final_dlambda_error_pct"] = 100.0 * std::abs(s.err.back()[1]) / R;
     j["final_dlambda_sigma_pct"] = 100.0 * s.sig.back()[1] / R;
+    // The first estimate (mode 2: the initialisation by BOD; modes 1 and 3:
+    // the ground a-priori): when, and how good against its own 1-sigma.
+    j["first_estimate_orbits"] = s.t_s.front() / period_s;
+    j["initial_dlambda_error_pct"] = 100.0 * s.err.front()[1] / s.range.front();
+    j["initial_dlambda_sigma_pct"] = 100.0 * s.sig.front()[1] / s.range.front();
+    j["initial_within_3sigma"] = std::abs(s.err.front()[1]) <= 3.0 * s.sig.front()[1];
     j["final_error_a_roe_m"] = std::vector<double>(s.err.back().data(), s.err.back().data() + 6);
     j["final_sigma_a_roe_m"] = std::vector<double>(s.sig.back().data(), s.sig.back().data() + 6);
     // Convergence: from here on |a dlambda error| <= 1 % of range.

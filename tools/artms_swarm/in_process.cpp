@@ -94,6 +94,7 @@ InProcessResult run_in_process(const config::Scenario& sc, const fs::path& dir,
         auto out = observers[i]->step(tick, std::move(in[i]));
         record(out.imp);
         if (out.nav) recorder.add(*out.nav);
+        record(out.bod);
         record(out.events);
         echo(out.events);
         if (out.isl) broadcasts.push_back(std::move(*out.isl));

@@ -5,6 +5,7 @@ Values as the IDL (idl/artms.idl) and the recorder write them:
   isl.csv                                 source
   imp/<observer>/attitude.csv             status (written as its name: ok, ...)
   imp/<observer>/measurements.csv         track_id
+  bod/<observer>.csv                      verdict (verdict_name writes the label)
 """
 import enum
 
@@ -82,6 +83,22 @@ class Severity(_Coded):
     @staticmethod
     def _labels():
         return {0: "info", 1: "warning", 2: "error"}
+
+
+class BodVerdict(_Coded):
+    """BOD's verdict on an attempt (IDL BodAttempt.verdict; bod/<observer>.csv verdict, verdict_name)."""
+    USABLE = 0
+    TOO_FEW_MEASUREMENTS = 1
+    BAD_INPUT = 2
+    NOT_CONVERGED = 3
+    MINIMUM_AT_EDGE = 4
+    FLAT_RESIDUAL_CURVE = 5
+    OUTSIDE_TOLERANCES = 6
+
+    @staticmethod
+    def _labels():
+        return {0: "usable", 1: "too_few_measurements", 2: "bad_input", 3: "not_converged",
+                4: "minimum_at_edge", 5: "flat_residual_curve", 6: "outside_tolerances"}
 
 
 # track_id of imp/<observer>/measurements.csv:

@@ -139,7 +139,7 @@ struct BodTuning {
   double batch_orbits = 2.0;         // paper: over 1-2 orbits (the latest ones)
   double max_sigma_range_fraction = 0.3;  // uncertainty tolerance of a usable result
   double max_residual_arcsec = 15.0;      // post-fit RMS tolerance (a few times IMP's ~3")
-  double check_chi2 = 22.46;         // health check 1: squared Mahalanobis distance, 6 dof 99.9 %
+  double check_chi2 = 50.0;          // health check 1: squared Mahalanobis distance (docs/bod.md: why not chi2(6) 99.9 % = 22.5)
 };
 struct SodTuning {
   double period_s = 60.0;
