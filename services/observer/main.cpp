@@ -2,7 +2,8 @@
 // software is fsw::Observer (common/fsw); this file only wires DDS to it:
 // each tick, what arrived (its GNSS fixes, its camera frames, the ISL relays
 // addressed to it) goes in, and what it wrote (IMP telemetry, navigation
-// telemetry, its ISL broadcast, events) goes out. It never reads truth.
+// telemetry, its ISL broadcast, BOD attempts, events) goes out. It never
+// reads truth.
 #include <cstdio>
 
 #include "artms/fsw/observer.hpp"
@@ -32,6 +33,7 @@ int run(const runtime::ServiceOptions& opt) {
   dds::Writer<artms_msg_NavTelemetry> nav_writer(participant, topics.nav_telemetry, runtime::data_qos());
   runtime::EventLog events(participant, topics, opt.name);
   dds::Writer<artms_msg_ImpReport> imp_writer(participant, topics.imp_report, runtime::data_qos());
+  dds::Writer<artms_msg_BodAttempt> bod_writer(participant, topics.bod_attempt, runtime::data_qos());
   // Inter-satellite link: broadcasts go to the crosslink emulator (partition
   // isl-tx); what it relays to this observer arrives in isl-<sender>-<me>.
   dds::Writer<artms_msg_IslBroadcast> isl_writer(participant, topics.isl_broadcast, runtime::isl_tx_qos());
@@ -41,6 +43,7 @@ int run(const runtime::ServiceOptions& opt) {
                        {{"nav_telemetry writer", nav_writer.handle(), true, 1},
                         {"event writer", events.writer().handle(), true, 1},
                         {"imp_report writer", imp_writer.handle(), true, 1},
+                        {"bod_attempt writer", bod_writer.handle(), true, 1},
                         {"gnss_fix reader", gnss_reader.handle(), false, observer.uplink().observer.gnss.enabled ? 1 : 0},
                         {"camera_frame reader", frame_reader.handle(), false, 1},
                         // The emulator reads every broadcast; relay writers
@@ -58,9 +61,11 @@ int run(const runtime::ServiceOptions& opt) {
     for (const auto& r : out.imp) runtime::write(imp_writer, r);
     if (out.isl) runtime::write(isl_writer, *out.isl);
     if (out.nav) runtime::write(nav_writer, *out.nav);
+    for (const auto& b : out.bod) runtime::write(bod_writer, b);
     events.publish(out.events);
     for (dds::Entity* w : {static_cast<dds::Entity*>(&nav_writer), static_cast<dds::Entity*>(&events.writer()),
-                           static_cast<dds::Entity*>(&imp_writer), static_cast<dds::Entity*>(&isl_writer)}) {
+                           static_cast<dds::Entity*>(&imp_writer), static_cast<dds::Entity*>(&isl_writer),
+                           static_cast<dds::Entity*>(&bod_writer)}) {
       dds::detail::wait_for_acks(w->handle(), opt.step_timeout_s);
     }
     clock.done(tick->step);

@@ -34,6 +34,7 @@ int run(const runtime::ServiceOptions& opt) {
   dds::Reader<artms_msg_IslOutcome> isl_reader(participant, topics.isl_outcome, q);
   dds::Reader<artms_msg_FrameTruth> frame_truth_reader(participant, topics.frame_truth, q);
   dds::Reader<artms_msg_ImpReport> imp_reader(participant, topics.imp_report, q);
+  dds::Reader<artms_msg_BodAttempt> bod_reader(participant, topics.bod_attempt, q);
   const auto drain_all = [&]() {
     drain(truth_reader, rec);
     drain(gnss_reader, rec);
@@ -43,6 +44,7 @@ int run(const runtime::ServiceOptions& opt) {
     drain(frame_truth_reader, rec);
     drain(imp_reader, rec);
     drain(isl_reader, rec);
+    drain(bod_reader, rec);
   };
 
   clock.announce_ready(participant, {}, 60.0);
@@ -68,6 +70,6 @@ int run(const runtime::ServiceOptions& opt) {
 int main(int argc, char** argv) {
   return runtime::run_service(argc, argv, "artms-recorder",
                               "Records every topic of a run into the run folder (truth.oem, nav/, gnss.csv, isl.csv,\n"
-                              "links.csv, events.log, frames.csv, imp/), deterministically ordered.",
+                              "links.csv, events.log, frames.csv, imp/, bod/), deterministically ordered.",
                               run);
 }

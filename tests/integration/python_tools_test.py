@@ -13,7 +13,7 @@ import tempfile
 import unittest
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "..", "tools", "python"))
-from artms_tools import (FrameStatus, NavHealth, RunFolderError, SolutionSource, decode_track_id,  # noqa: E402
+from artms_tools import (BodVerdict, FrameStatus, NavHealth, RunFolderError, SolutionSource, decode_track_id,  # noqa: E402
                          is_samus_track, read_csv, read_oem, read_summary, single_detection_target,
                          tt_ns_from_utc)
 
@@ -99,6 +99,8 @@ class CodesTest(unittest.TestCase):
                          [0, 1, 2, 3, 4])
         with self.assertRaises(ValueError):
             FrameStatus.parse("dropped")
+        self.assertEqual(BodVerdict.parse("minimum_at_edge"), BodVerdict.MINIMUM_AT_EDGE)
+        self.assertEqual(BodVerdict(6).label, "outside_tolerances")
 
     def test_track_ids(self):
         self.assertEqual(decode_track_id(-1), ("untracked", None))

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # artms-report on fabricated run folders: a complete one (2 targets, 300 rows
 # each, local and remote measurements, a re-initialisation and a no-solution
-# gap), one without eval/observers.csv and with nulls in summary.json, an empty
-# one (no crash, exit 1) and a missing one (exit 2).
+# gap, two BOD attempts with their residual curves; no truth.oem: the BOD
+# range errors come from eval/targets.csv's range_m), one without
+# eval/observers.csv and with nulls in summary.json, an empty one (no crash,
+# exit 1) and a missing one (exit 2).
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -48,6 +50,29 @@ def fabricate(run, with_observers, nulls):
                 src = "gnss" if i < 100 else "angles"
                 w.writerow(["", t0_ns + int(t * 1e9), "SV4", "sod", src, abs(random.gauss(0, 8)),
                             abs(random.gauss(0, 0.01)), 10.0, 0.012])
+    if with_observers:  # BOD telemetry: a usable attempt on SV2 and one not usable (no target), 40 samples each
+        os.makedirs(os.path.join(run, "bod"), exist_ok=True)
+        with open(os.path.join(run, "bod", "SV4.csv"), "w", newline="") as f, \
+                open(os.path.join(run, "bod", "SV4_curves.csv"), "w", newline="") as g:
+            w, wc = csv.writer(f), csv.writer(g)
+            w.writerow(["t_utc", "t_tt_ns", "observer", "attempt", "track", "target", "verdict", "verdict_name",
+                        "measurements", "iterations", "residual_rms_arcsec", "correlation_inflation", "a_observer_m",
+                        "range_m", "sigma_range_m"] + [f"a_{k}_m" for k in ROE] + [f"sigma_a_{k}_m" for k in ROE]
+                       + ["mahalanobis2", "action", "why"])
+            wc.writerow(["attempt", "sample", "a_dlambda_m", "residual_rms_arcsec", "chi2", "converged"])
+            for n, (hours, usable) in enumerate([(3.0, True), (6.0, False)], start=1):
+                est = 50e3 + random.gauss(0, 500)
+                w.writerow([f"2024-05-16T0{int(hours)}:00:00.000Z", t0_ns + int(hours * 3600e9), "SV4", n, 0,
+                            "SV2" if usable else "", 0 if usable else 4,
+                            "usable" if usable else "minimum_at_edge", 100, 3, 3.5, 1.1, 6943000.0, est, 550.0]
+                           + [0.0, est, 0.0, 0.0, 0.0, 0.0] + [5.0, 550.0, 5.0, 5.0, 1.0, 20.0]
+                           + ["" if n == 2 else 3.2, "SOD initialised from BOD" if usable else "not usable",
+                              "" if usable else "the smallest residual is at the nearest sample"])
+                for k in range(40):
+                    x = 2e3 * 1.1 ** k
+                    conv = k > 2
+                    res = 3.5 + 80 * abs(math.log(x / est)) if conv else ""
+                    wc.writerow([n, k, f"{x:.3f}", res, "" if not conv else res * 10, int(conv)])
     targets = {}
     for tgt, rng in ranges.items():
         targets[tgt] = {"final_range_m": rng, "final_dlambda_error_pct": 0.4 if tgt == "SV2" else -1.1,
@@ -72,7 +97,9 @@ fails=0
 check() { [ -s "$1" ] || { echo "FAIL: $1 missing or empty"; fails=$((fails+1)); }; }
 
 "$BIN/artms-report" "$WORK/full" > "$WORK/full.out" 2>&1 || { echo "FAIL: full run exit $?"; cat "$WORK/full.out"; fails=$((fails+1)); }
-for f in roe_SV4_SV2.png roe_SV4_SV3.png observer_SV4.png summary.png summary.md; do check "$WORK/full/plots/$f"; done
+for f in roe_SV4_SV2.png roe_SV4_SV3.png observer_SV4.png bod_curves_SV4.png bod_range_SV4.png summary.png summary.md; do
+  check "$WORK/full/plots/$f"
+done
 grep -q "PASS" "$WORK/full/plots/summary.md" || { echo "FAIL: no verdict in summary.md"; fails=$((fails+1)); }
 
 "$BIN/artms-report" "$WORK/partial" --out "$WORK/partial_out" > "$WORK/partial.out" 2>&1 \

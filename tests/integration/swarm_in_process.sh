@@ -4,7 +4,9 @@
 # DDS multi-process run (all files but timing.json and logs/), on shorter
 # spans of the three scenarios the acceptance names: PSE (mode 1, one
 # observer), IT multi (mode 3, three observers, ISL) and the four-observer
-# soak scenario.
+# soak scenario; and the PSE BOD scenario (mode 2: SOD initialised by BOD).
+# The PSE spans hold BOD attempts (every 90 min), so bod/ is compared too;
+# a span without any attempt fails (bod/<observer>.csv header only).
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -25,7 +27,16 @@ assert i["runtime"] == "in-process" and d["runtime"] == "dds", (d, i)
 print(f"  wall time: DDS {d['wall_time_s']:.1f} s, in-process {i['wall_time_s']:.1f} s")
 PY
 }
-run pse starling_pse.yaml --orbits 1
+bod_rows() {  # name observer: the run folder's BOD attempts of that observer exist
+  local f="$WORK/$1-dds/bod/$2.csv"
+  local n; n=$(($(wc -l < "$f") - 1))
+  [ "$n" -ge 1 ] || { echo "$1: no BOD attempt in $f"; exit 1; }
+  echo "  $1: $n BOD attempts of $2 in bod/$2.csv, identical"
+}
+run pse starling_pse.yaml --duration 3h
+bod_rows pse SV4
+run pse_bod starling_pse_bod.yaml --duration 5h
+bod_rows pse_bod SV2
 run it_multi starling_it_multi.yaml --duration 2h
 run soak soak_four_observers.yaml --duration 1h
 echo "swarm in-process: ok"

@@ -1062,12 +1062,36 @@ class Parser {
       if (const Val* tv = m.find("targets")) {
         if (const auto tl = items(ctx_, *tv, "targets")) {
           for (const Val& t : *tl) {
-            if (auto id = read_identifier(ctx_, t, "a spacecraft id")) {
-              check_spacecraft_ref(*id, t, "target");
-              if (*id == o.spacecraft) ctx_.error(t, "an observer is not its own target: " + quote(*id));
-              else if (std::find(o.targets.begin(), o.targets.end(), *id) != o.targets.end())
-                ctx_.error(t, "duplicate target " + quote(*id));
-              else o.targets.push_back(*id);
+            // An id, or {id: SV2, range_km: [min, max]} (BOD's range window for it).
+            const Val* idv = &t;
+            std::array<double, 2> window{0.0, 0.0};
+            std::optional<Map> tm;
+            if (t.node.IsMap()) {
+              tm.emplace(ctx_, t, std::vector<std::string_view>{"id", "range_km"});
+              if (!tm->ok()) continue;
+              idv = tm->require("id", "a spacecraft id");
+              if (!idv) continue;
+              if (const Val* rv = tm->find("range_km")) {
+                if (const auto w = read_vector<2>(ctx_, *rv, "[min, max] in km")) {
+                  if (!((*w)[0] > 0.0) || !((*w)[1] > (*w)[0])) {
+                    ctx_.error(*rv, "out of range: expected 0 < min < max, got [" + fmt_num((*w)[0]) + ", " +
+                                        fmt_num((*w)[1]) + "]");
+                  } else {
+                    window = {(*w)[0] * 1e3, (*w)[1] * 1e3};
+                  }
+                }
+              }
+            }
+            if (auto id = read_identifier(ctx_, *idv, "a spacecraft id")) {
+              check_spacecraft_ref(*id, *idv, "target");
+              if (*id == o.spacecraft) {
+                ctx_.error(*idv, "an observer is not its own target: " + quote(*id));
+              } else if (std::find(o.targets.begin(), o.targets.end(), *id) != o.targets.end()) {
+                ctx_.error(*idv, "duplicate target " + quote(*id));
+              } else {
+                o.targets.push_back(*id);
+                o.target_ranges_m.push_back(window);
+              }
             }
           }
         }

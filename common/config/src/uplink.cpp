@@ -66,7 +66,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"sigma_position_m", o.gnss.sigma_position_m},
           {"sigma_velocity_mps", o.gnss.sigma_velocity_mps}, {"outages_tt_ns", outages}}},
         {"apriori_age_days", o.apriori.age_days},
-        {"targets", o.targets}}},
+        {"targets", o.targets},
+        {"target_ranges_m", o.target_ranges_m}}},
       {"tuning",
        {{"imp",
          {{"detection_sigma", u.tuning.imp.detection_sigma},
@@ -159,6 +160,10 @@ ObserverUplink read_uplink(const std::string& path) {
     }
     u.observer.apriori.age_days = o.at("apriori_age_days").get<double>();
     u.observer.targets = o.at("targets").get<std::vector<std::string>>();
+    u.observer.target_ranges_m = o.at("target_ranges_m").get<std::vector<std::array<double, 2>>>();
+    if (u.observer.target_ranges_m.size() != u.observer.targets.size()) {
+      throw std::runtime_error(path + ": observer.target_ranges_m needs one [min, max] per target");
+    }
     const auto& t = j.at("tuning");
     u.tuning.imp.detection_sigma = t.at("imp").at("detection_sigma").get<double>();
     u.tuning.imp.dbscan_min_points = t.at("imp").at("dbscan_min_points").get<int>();

@@ -548,6 +548,15 @@ void Navigator::check_health() {
   }
 }
 
+std::optional<std::array<double, 2>> Navigator::range_window(int k) const {
+  const auto& ids = up_.observer.targets;
+  const auto it = std::find(ids.begin(), ids.end(), target_ids_[static_cast<std::size_t>(k)]);
+  if (it == ids.end() || up_.observer.target_ranges_m.size() != ids.size()) return std::nullopt;
+  const auto w = up_.observer.target_ranges_m[static_cast<std::size_t>(it - ids.begin())];
+  if (!(w[1] > w[0]) || !(w[0] > 0.0)) return std::nullopt;
+  return w;
+}
+
 bool Navigator::restart_estimate(int k, astro::TimeTT t, const astro::QnsElements& observer_osc, astro::Vec6& roe,
                                  astro::Mat6& P) const {
   const auto& b = last_bod_[static_cast<std::size_t>(k)];
@@ -837,8 +846,9 @@ void Navigator::run_bod(astro::TimeTT t_est) {
   }
   // Targets that wait for a first estimate (mode 2): one waiting target
   // takes the solution with the most bearings; several are told apart by
-  // range only (the uplink lists them nearest first), so they are
-  // initialised together when as many solutions as targets are at hand.
+  // range only: by the uplinked range windows (observer targets[].range_km)
+  // or, as many solutions as targets at hand, in the uplink's order
+  // (nearest first).
   std::vector<int> waiting;
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
     if (!has_estimate_[static_cast<std::size_t>(k)]) waiting.push_back(k);
@@ -851,7 +861,22 @@ void Navigator::run_bod(astro::TimeTT t_est) {
         if (pending[i].measurements > pending[pick].measurements) pick = i;
       }
       assign.emplace_back(waiting.front(), pick);
-    } else if (pending.size() == waiting.size()) {
+    } else if (pending.size() != waiting.size()) {
+      // Fewer (or more) solutions than waiting targets: a solution whose
+      // range lies in exactly one waiting target's uplinked window is that target's.
+      for (std::size_t i = 0; i < pending.size(); ++i) {
+        int only = -1, n = 0;
+        for (const int k : waiting) {
+          const auto w = range_window(k);
+          if (w && pending[i].range_m >= (*w)[0] && pending[i].range_m <= (*w)[1]) {
+            only = k;
+            ++n;
+          }
+        }
+        const bool taken = std::any_of(assign.begin(), assign.end(), [&](const auto& a) { return a.first == only; });
+        if (n == 1 && !taken) assign.emplace_back(only, i);
+      }
+    } else {
       std::vector<std::size_t> order(pending.size());
       for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
       std::sort(order.begin(), order.end(), [&](auto a, auto b) { return pending[a].range_m < pending[b].range_m; });
@@ -866,7 +891,8 @@ void Navigator::run_bod(astro::TimeTT t_est) {
         rec.action = waiting.size() > 1
                          ? bus::bounded(std::to_string(waiting.size()) + " targets wait for BOD and " +
                                             std::to_string(pending.size()) +
-                                            " usable solutions: told apart by range only when as many as targets",
+                                            " usable solutions: no range window holds it alone, and the targets "
+                                            "are told apart by range order only when as many as them",
                                         bus::kEventTextChars)
                          : "not used: another track of the batch has more bearings";
         messages_.push_back("BOD: not used: " + rec.action);

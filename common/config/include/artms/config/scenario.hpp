@@ -98,6 +98,10 @@ struct ObserverConfig {
   // The spacecraft this observer navigates (the ground's telecommand; mode 2
   // gets no orbit for them). Empty: every other spacecraft.
   std::vector<std::string> targets;
+  // Per target, an optional range window [min, max] in m for BOD's dlambda
+  // samples (mode 2: how BOD tells identical unknown targets apart); {0, 0}:
+  // tuning.bod.range_min_m / range_max_m.
+  std::vector<std::array<double, 2>> target_ranges_m;
 };
 
 struct LinkOutage {

@@ -339,6 +339,8 @@ class Navigator {
   // What target k restarts from at t (the observer's osculating elements
   // then): its latest BOD estimate, else the a-priori (drifted to t); false
   // when it has neither (mode 2).
+  // Target k's uplinked range window (observer targets[].range_km), if any.
+  [[nodiscard]] std::optional<std::array<double, 2>> range_window(int k) const;
   bool restart_estimate(int k, astro::TimeTT t, const astro::QnsElements& observer_osc, astro::Vec6& roe,
                         astro::Mat6& P) const;
 
