@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# BOD (issue 16), in-process runs (the DDS path of the same objects is pinned
+# by swarm_in_process):
+#  1. navigation mode 2, starling_pse_bod.yaml 4 h seed 7: SV2 has no
+#     a-priori of SV4; BOD initialises it from its IMP track within 2 orbits,
+#     the first estimate's dlambda error is <= 5 % of range and inside 3 sigma,
+#     bod/SV2.csv records the attempt that did it and its residual curve;
+#  2. starling_pse_burn_large.yaml 11 h: SV2 burns 0.5 m/s along-track at
+#     08:00; SV4's navigator names health check 1 and re-initialises SV2 from
+#     BOD before 11:00 (two BOD periods).
+set -euo pipefail
+BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
+rm -rf "$WORK"; mkdir -p "$WORK"
+"$BIN/artms-swarm" run "$SRC/config/swarms/starling_pse_bod.yaml" --in-process --duration 4h --seed 7 \
+  --no-report --out "$WORK/mode2" > "$WORK/mode2.out" 2>&1 || { tail -30 "$WORK/mode2.out"; exit 1; }
+"$BIN/artms-swarm" run "$SRC/config/swarms/starling_pse_burn_large.yaml" --in-process --duration 11h --seed 7 \
+  --no-report --out "$WORK/burn" > "$WORK/burn.out" 2>&1 || { tail -30 "$WORK/burn.out"; exit 1; }
+/usr/bin/python3 - "$WORK" <<'PY'
+import csv, json, sys
+work = sys.argv[1]
+t = json.load(open(f"{work}/mode2/summary.json"))["observers"]["SV2"]["targets"]["SV4"]
+print(f"mode 2: SV4 first estimate at {t['first_estimate_orbits']:.2f} orbits, dlambda error "
+      f"{t['initial_dlambda_error_pct']:+.2f} % (1-sigma {t['initial_dlambda_sigma_pct']:.2f} %)")
+assert t["first_estimate_orbits"] <= 2.0, t
+assert abs(t["initial_dlambda_error_pct"]) <= 5.0, t
+assert t["initial_within_3sigma"], t
+rows = list(csv.DictReader(open(f"{work}/mode2/bod/SV2.csv")))
+init = [r for r in rows if r["action"].startswith("SOD initialised from BOD")]
+assert init and init[0]["verdict"] == "0" and init[0]["target"] == "SV4", rows
+curve = [r for r in csv.DictReader(open(f"{work}/mode2/bod/SV2_curves.csv")) if r["attempt"] == init[0]["attempt"]]
+assert len(curve) >= 50, len(curve)
+log = open(f"{work}/burn/events.log").read().splitlines()
+hits = [l for l in log if "SV2 unhealthy (health check 1" in l and "re-initialised from BOD" in l]
+assert hits, "no health check 1 on SV2 after its burn"
+when = hits[0][11:16]
+print(f"burn: {hits[0][:160]}")
+assert "08:00" < when <= "11:00", when
+print("swarm_bod: ok")
+PY
