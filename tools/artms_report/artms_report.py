@@ -431,10 +431,11 @@ def usable(row):
     return row.get("verdict") == str(int(BodVerdict.USABLE))
 
 
-def plot_bod_curves(obs, attempts, curves, out_dir):
+def plot_bod_curves(obs, attempts, curves, out_dir, truth=None, period=None):
     """The paper's residual versus a*dlambda: one line per attempt (dotted where a sample did not
     converge), the chosen sample (the converged one with the smallest residual) marked o, a usable
-    attempt's refined estimate x."""
+    attempt's refined estimate x, and the truth (the orbit mean of the true range at t_est, what
+    BOD's mean a*dlambda estimates) marked v on the curve when truth is known."""
     info = {r.get("attempt"): r for r in attempts or []}
     by_attempt = {}
     for r in curves:
@@ -442,6 +443,7 @@ def plot_bod_curves(obs, attempts, curves, out_dir):
     keys = sorted(by_attempt, key=fnum)
     colours = plt.cm.viridis(np.linspace(0.0, 0.9, max(len(keys), 1)))
     fig, ax = plt.subplots(figsize=(8.5, 5.5))
+    marked_truth = False
     for colour, n in zip(colours, keys):
         c = columns(by_attempt[n], ["a_dlambda_m", "residual_rms_arcsec", "converged"])
         x, y, conv = c["a_dlambda_m"] / 1e3, c["residual_rms_arcsec"], c["converged"] == 1
@@ -455,6 +457,15 @@ def plot_bod_curves(obs, attempts, curves, out_dir):
             ax.plot(x[i], y[i], "o", color=colour, ms=6, mec="black", mew=0.6)
         if a and usable(a):
             ax.plot(fnum(a.get("a_dlambda_m")) / 1e3, fnum(a.get("residual_rms_arcsec")), "x", color="black", ms=7)
+        ser = truth.series(obs, a["target"]) if truth is not None and period and a and a.get("target") else None
+        if ser is not None:
+            mean = orbit_mean(ser[0], ser[1], fnum(a.get("t_tt_ns")), period)
+            if mean is not None and ok.any():
+                xt = math.copysign(mean, np.nanmedian(x)) / 1e3
+                order = np.argsort(x)
+                yt = float(np.interp(xt, x[order], np.where(ok, y, np.nan)[order]))
+                ax.plot(xt, yt, "v", color=colour, ms=8, mec="black", mew=0.6)
+                marked_truth = True
     if np.isfinite(columns(curves, ["residual_rms_arcsec"])["residual_rms_arcsec"]).any():
         ax.set_yscale("log")
     ax.set_xlabel(r"$a\delta\lambda$ [km]")
@@ -462,7 +473,8 @@ def plot_bod_curves(obs, attempts, curves, out_dir):
     ax.grid(True, which="both", lw=0.3, alpha=0.6)
     if len(keys) <= 12:
         ax.legend(fontsize=7, title="attempt: t_est (UTC) verdict", title_fontsize=7, loc="upper right")
-    ax.set_title(f"{obs} BOD residual curves ({len(keys)} attempts; o chosen sample, x estimate)", fontsize=11)
+    ax.set_title(f"{obs} BOD residual curves ({len(keys)} attempts; o chosen sample, x estimate"
+                 + (", v truth" if marked_truth else "") + ")", fontsize=11)
     fig.tight_layout()
     path = os.path.join(out_dir, f"bod_curves_{safe(obs)}.png")
     fig.savefig(path, dpi=DPI)
@@ -575,7 +587,8 @@ def plot_bod(run_dir, trows, summary, t0, out_dir):
         attempts = read_csv(os.path.join(run_dir, "bod", f"{obs}.csv"), "no BOD range plot") or []
         if curves:
             try:
-                written.append(plot_bod_curves(obs, attempts, curves, out_dir))
+                truth = truth or TrueRange(run_dir, trows)
+                written.append(plot_bod_curves(obs, attempts, curves, out_dir, truth, period_s(summary, obs)))
             except Exception as e:
                 warn(f"BOD curves plot {obs} failed: {type(e).__name__}: {e}")
         if not attempts:
