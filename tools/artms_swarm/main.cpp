@@ -174,6 +174,14 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
   j["seed"] = sc.seed;
   j["sim_duration_s"] = sim_s;
   j["orbits"] = sim_s / sc.reference_period_s();
+  // Whether the world is richer than the onboard model (issue 17): the two
+  // force models side by side.
+  const auto fm = [](const dynamics::ForceModelOptions& f) {
+    return nlohmann::json{{"gravity_degree", f.gravity_degree}, {"gravity_order", f.gravity_order}, {"drag", f.drag},
+                          {"sun", f.sun}, {"moon", f.moon}, {"srp", f.srp}};
+  };
+  j["force_models"] = {{"truth", fm(sc.force_model)}, {"onboard", fm(sc.onboard_force_model)},
+                       {"agree", sc.force_models_agree()}};
   j["processes"] = nlohmann::json::array();
   for (const auto& c : children) j["processes"].push_back({{"name", c.name}, {"exit_code", c.exit_code}});
   std::map<std::string, io::OemSegment> truth;

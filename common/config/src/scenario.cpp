@@ -684,11 +684,23 @@ class Parser {
   }
 
   void parse_force_model(const Val& v) {
+    // Two sides, or one block for both.
+    if (v.node.IsMap() && (v.node["truth"] || v.node["onboard"])) {
+      Map m(ctx_, v, {"truth", "onboard"});
+      if (!m.ok()) return;
+      if (const Val* t = m.find("truth")) parse_force_block(*t, s_.force_model);
+      if (const Val* o = m.find("onboard")) parse_force_block(*o, s_.onboard_force_model);
+      return;
+    }
+    parse_force_block(v, s_.force_model);
+    s_.onboard_force_model = s_.force_model;
+  }
+
+  void parse_force_block(const Val& v, dynamics::ForceModelOptions& f) {
     Map m(ctx_, v,
           {"gravity_degree", "gravity_order", "drag", "sun", "moon", "srp", "shadow",
            "harris_priester_exponent", "harris_priester_lag_deg"});
     if (!m.ok()) return;
-    auto& f = s_.force_model;
     const bool degree_ok = int_field(ctx_, m, "gravity_degree", f.gravity_degree, 0,
                                      kMaxGravityDegree, "the shipped GGM01S field");
     // A degree alone means a full N x N field.
@@ -1440,6 +1452,15 @@ astro::QnsElements absolute_qns(const Scenario& s, const SpacecraftConfig& sc, s
 
 // ---------------------------------------------------------------------------
 // Scenario
+
+bool Scenario::force_models_agree() const {
+  const auto& a = force_model;
+  const auto& b = onboard_force_model;
+  return a.gravity_degree == b.gravity_degree && a.gravity_order == b.gravity_order && a.drag == b.drag &&
+         a.sun == b.sun && a.moon == b.moon && a.srp == b.srp && a.shadow == b.shadow &&
+         a.atmosphere.cosine_exponent == b.atmosphere.cosine_exponent &&
+         a.atmosphere.lag_angle_rad == b.atmosphere.lag_angle_rad;
+}
 
 const SpacecraftConfig& Scenario::spacecraft_by_id(const std::string& id) const {
   for (const auto& sc : spacecraft) {

@@ -21,7 +21,7 @@ ObserverUplink make_uplink(const Scenario& s, const std::string& spacecraft) {
   u.duration_s = s.duration_s;
   u.step_s = s.step_s;
   u.seed = s.seed;
-  u.force_model = s.force_model;
+  u.force_model = s.onboard_force_model;  // what the spacecraft flies, not the world
   u.observer = *obs;
   u.tuning = s.tuning;
   u.crosslink_enabled = s.crosslink.enabled;

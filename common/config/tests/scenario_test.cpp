@@ -2,6 +2,7 @@
 // derived quantities, and one test per validation case (file, line, field
 // path and message checked). Bad files are written under ::testing::TempDir().
 #include "artms/config/scenario.hpp"
+#include "artms/config/uplink.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -298,6 +299,34 @@ TEST(ScenarioValidation, SpacecraftIdsAreAtMost20Characters) {
     found = found || d.message.find("at most 20 characters, got 25") != std::string::npos;
   }
   EXPECT_TRUE(found) << dump(diags);
+}
+
+TEST(ScenarioLoad, OneForceModelBlockMeansBothSides) {
+  const Scenario s = load_scenario(write_file("fm_one.yaml", kValid + "force_model: {gravity_degree: 20, srp: true}\n"));
+  EXPECT_EQ(s.onboard_force_model.gravity_degree, 20);
+  EXPECT_TRUE(s.onboard_force_model.srp);
+  EXPECT_TRUE(s.force_models_agree());
+}
+
+TEST(ScenarioLoad, TruthAndOnboardForceModelsApart) {
+  const Scenario s = load_scenario(write_file(
+      "fm_two.yaml", kValid + "force_model:\n  truth: {gravity_degree: 40, srp: true}\n  onboard: {gravity_degree: 10}\n"));
+  EXPECT_EQ(s.force_model.gravity_degree, 40);
+  EXPECT_TRUE(s.force_model.srp);
+  EXPECT_EQ(s.onboard_force_model.gravity_degree, 10);
+  EXPECT_FALSE(s.onboard_force_model.srp);
+  EXPECT_FALSE(s.force_models_agree());
+  // The uplink carries the onboard side only.
+  EXPECT_EQ(make_uplink(s, "SV4").force_model.gravity_degree, 10);
+}
+
+TEST(ScenarioValidation, ABadFieldOfOneForceModelSideIsNamed) {
+  const std::string path = write_file(
+      "fm_bad.yaml", kValid + "force_model:\n  truth: {gravity_degree: 400}\n  onboard: {gravity_degree: 10}\n");
+  const auto diags = validate_scenario_file(path);
+  ASSERT_EQ(diags.size(), 1u) << dump(diags);
+  EXPECT_EQ(diags[0].field, "force_model.truth.gravity_degree");
+  EXPECT_EQ(diags[0].line, 13);
 }
 
 TEST(ScenarioValidation, Mode4IsRefusedUntilItExists) {

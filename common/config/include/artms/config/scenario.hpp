@@ -184,7 +184,13 @@ struct Scenario {
   double duration_s = 0.0;
   double step_s = 60.0;     // lock-step period of the clock
   std::uint64_t seed = 1;
+  // The world's forces (truth service, renderer) and the onboard model the
+  // uplink carries (SOD's propagator). A single `force_model` block in the
+  // file means both; `force_model: {truth: {...}, onboard: {...}}` sets them
+  // apart (a side left out keeps the defaults: the paper's onboard model).
   dynamics::ForceModelOptions force_model;
+  dynamics::ForceModelOptions onboard_force_model;
+  [[nodiscard]] bool force_models_agree() const;
   std::vector<SpacecraftConfig> spacecraft;
   std::vector<ObserverConfig> observers;
   CrosslinkConfig crosslink;
