@@ -3,6 +3,8 @@
 // quantities (initial states, services). The schema is config/swarms/SCHEMA.md.
 #include "artms/config/scenario.hpp"
 
+#include "artms/dynamics/j2_mean.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -802,8 +804,16 @@ class Parser {
   }
 
   bool parse_relative(const Val& v, InitialOrbit& o, ScInfo& info) {
-    Map m(ctx_, v, {"chief", "roe_m"});
+    Map m(ctx_, v, {"chief", "roe_m", "roe_type"});
     if (!m.ok()) return false;
+    if (const Val* t = m.find("roe_type")) {
+      const auto type = read_string(ctx_, *t, "osculating or mean");
+      if (type && *type == "mean") {
+        o.mean_roe = true;
+      } else if (type && *type != "osculating") {
+        ctx_.error(*t, "expected osculating or mean, got " + describe(t->node));
+      }
+    }
     const std::size_t before = ctx_.count();
     if (const Val* c = m.require("chief", "the id of another spacecraft")) {
       if (auto id = read_identifier(ctx_, *c, "a spacecraft id")) {
@@ -1445,6 +1455,11 @@ astro::QnsElements absolute_qns(const Scenario& s, const SpacecraftConfig& sc, s
     throw std::invalid_argument("relative orbit chain through '" + sc.id + "' has a cycle");
   }
   const astro::QnsElements chief = absolute_qns(s, s.spacecraft_by_id(sc.orbit.chief), depth + 1);
+  if (sc.orbit.mean_roe) {
+    const astro::QnsElements chief_mean = dynamics::mean_from_osculating(chief);
+    return dynamics::osculating_from_mean(
+        astro::qns_from_roe(chief_mean, astro::Roe::from_scaled_m(sc.orbit.a_droe_m, chief_mean.a_m)));
+  }
   return astro::qns_from_roe(chief, astro::Roe::from_scaled_m(sc.orbit.a_droe_m, chief.a_m));
 }
 

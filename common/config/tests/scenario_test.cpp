@@ -3,6 +3,7 @@
 // path and message checked). Bad files are written under ::testing::TempDir().
 #include "artms/config/scenario.hpp"
 #include "artms/config/uplink.hpp"
+#include "artms/dynamics/j2_mean.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -327,6 +328,31 @@ TEST(ScenarioValidation, ABadFieldOfOneForceModelSideIsNamed) {
   ASSERT_EQ(diags.size(), 1u) << dump(diags);
   EXPECT_EQ(diags[0].field, "force_model.truth.gravity_degree");
   EXPECT_EQ(diags[0].line, 13);
+}
+
+TEST(ScenarioLoad, MeanRoeAreRelativeToTheChiefsMeanElements) {
+  std::string text = kValid;
+  const std::string key = "roe_m: [23, -52266, -471, -523, 35, 1811]}";
+  text.replace(text.find(key), key.size(), "roe_m: [23, -52266, -471, -523, 35, 1811], roe_type: mean}");
+  const Scenario s = load_scenario(write_file("mean_roe.yaml", text));
+  const auto chief = dynamics::mean_from_osculating(astro::qns_from_cartesian(s.initial_state_eci("SV4")));
+  const auto dep = dynamics::mean_from_osculating(astro::qns_from_cartesian(s.initial_state_eci("SV2")));
+  const astro::Vec6 a_roe = astro::roe_from_qns(chief, dep).as_vector() * chief.a_m;
+  const astro::Vec6 want = (astro::Vec6() << 23, -52266, -471, -523, 35, 1811).finished();
+  EXPECT_LT((a_roe - want).cwiseAbs().maxCoeff(), 0.01) << a_roe.transpose();
+  // The default reads them as osculating: a different deputy.
+  const Scenario o = load_scenario(write_file("osc_roe.yaml", kValid));
+  EXPECT_GT((o.initial_state_eci("SV2").r_m - s.initial_state_eci("SV2").r_m).norm(), 10.0);
+}
+
+TEST(ScenarioValidation, AnUnknownRoeTypeIsNamed) {
+  std::string text = kValid;
+  const std::string key = "roe_m: [23, -52266, -471, -523, 35, 1811]}";
+  text.replace(text.find(key), key.size(), "roe_m: [23, -52266, -471, -523, 35, 1811], roe_type: average}");
+  const auto diags = validate_scenario_file(write_file("bad_roe_type.yaml", text));
+  ASSERT_EQ(diags.size(), 1u) << dump(diags);
+  EXPECT_EQ(diags[0].field, "spacecraft[1].relative.roe_type");
+  EXPECT_THAT(diags[0].message, HasSubstr("expected osculating or mean"));
 }
 
 TEST(ScenarioValidation, Mode4IsRefusedUntilItExists) {

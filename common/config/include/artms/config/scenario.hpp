@@ -55,6 +55,11 @@ struct InitialOrbit {
   astro::QnsElements qns;        // kQns
   std::string chief;             // kRelative: id of another spacecraft
   astro::Vec6 a_droe_m = astro::Vec6::Zero();  // kRelative
+  // kRelative: the ROE are osculating (default: relative to the chief's
+  // osculating elements) or mean (relative to the chief's mean elements,
+  // first-order J2 theory, common/dynamics/j2_mean.hpp; the deputy's
+  // osculating state follows through the same map).
+  bool mean_roe = false;
 };
 
 struct SpacecraftConfig {
