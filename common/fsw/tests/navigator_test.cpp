@@ -279,5 +279,98 @@ TEST(NavigatorTracks, ATrackJoinedAcrossAGapIsAssociatedAgain) {
   EXPECT_EQ(r.targets[1].local_measurements, 17u);
 }
 
+// BOD in the navigator (issue 16): one target behind the observer on a PSE
+// relative orbit, its IMP track's bearings (3 arcsec) fed every minute with
+// the attitude of an anti-velocity camera.
+struct BodRun {
+  std::vector<std::string> messages;
+  std::vector<bus::BodAttempt> attempts;
+  NavReport report;
+  astro::Vec6 truth_a_roe = astro::Vec6::Zero();
+};
+
+BodRun bod_run(config::ObserverUplink up, Truth& truth, int minutes) {
+  Navigator nav(up, j2_forces());
+  imp::Samus samus;
+  imp::TrackerInput in;
+  in.observer_eci = truth.observer_eci();
+  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
+  samus.process(in, {});
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double s = 3 * astro::kArcsecToRad;
+  BodRun out;
+  for (int k = 0; k <= minutes; ++k) {
+    const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+    truth.advance_to(t);
+    nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
+    if (k > 0) {
+      const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
+      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+      nav.add_bearing(t, 4, (u + s * g(rng) * a + s * g(rng) * b).normalized(),
+                      Eigen::Quaterniond(truth.camera(0)), s);
+    }
+    nav.advance(t, t, samus);
+    for (auto& m : nav.take_messages()) out.messages.push_back(std::move(m));
+    for (auto& r : nav.take_bod_records()) out.attempts.push_back(std::move(r));
+  }
+  out.report = nav.report(truth.t());
+  out.truth_a_roe = truth.a_roe_m(0);
+  return out;
+}
+
+bool said(const BodRun& r, const std::string& text) {
+  return std::any_of(r.messages.begin(), r.messages.end(),
+                     [&](const std::string& m) { return m.find(text) != std::string::npos; });
+}
+
+TEST(NavigatorBod, Mode2InitialisesItsTargetFromTheImpTrack) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(1);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  config::ObserverUplink up;
+  up.epoch = kT0;
+  up.observer.spacecraft = "SV4";
+  up.observer.mode = 2;
+  up.observer.targets = {"SV2"};
+  up.swarm_ids = {"SV4", "SV2"};
+  // Before the first BOD (90 min) SOD has the observer only: no target reported.
+  BodRun early = bod_run(up, truth, 80);
+  EXPECT_TRUE(early.report.valid);
+  EXPECT_TRUE(early.report.targets.empty());
+  Truth truth2(kT0, observer_at_start(), a_roe);
+  const BodRun r = bod_run(up, truth2, 100);
+  ASSERT_TRUE(said(r, "SOD target SV2 initialised by BOD (no a-priori); IMP track 4 bound to it"));
+  ASSERT_EQ(r.attempts.size(), 1u);
+  EXPECT_EQ(r.attempts[0].verdict, bus::BodVerdict::kUsable);
+  EXPECT_EQ(r.attempts[0].target, "SV2");
+  EXPECT_EQ(r.attempts[0].track, 4);
+  EXPECT_GE(r.attempts[0].curve.size(), 50u);
+  ASSERT_EQ(r.report.targets.size(), 1u);
+  const astro::Vec6 err = r.report.targets[0].roe * truth2.observer().a_m - r.truth_a_roe;
+  const double sigma = std::sqrt(r.report.targets[0].P_roe(1, 1)) * truth2.observer().a_m;
+  EXPECT_LT(std::abs(err[1]), 0.05 * std::abs(r.truth_a_roe[1])) << err.transpose();
+  EXPECT_LT(std::abs(err[1]), 3.0 * sigma) << err.transpose() << " sigma " << sigma;
+}
+
+TEST(NavigatorBod, HealthCheck1ReinitialisesATargetSodIsSureOfAndWrongAbout) {
+  // A-priori 3 km off in dlambda with a 1 m covariance: SOD cannot bind the
+  // track; BOD on the unbound track finds the target and health check 1
+  // replaces SOD's estimate.
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(1);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng(3);
+  config::ObserverUplink up = uplink_at_truth(truth, rng);
+  up.apriori[0].roe[1] += 3000.0 / truth.observer().a_m;
+  const BodRun r = bod_run(up, truth, 100);
+  EXPECT_TRUE(said(r, "SOD target SV2 unhealthy (health check 1: squared Mahalanobis distance")) << r.messages.size();
+  EXPECT_TRUE(said(r, "re-initialised from BOD; IMP track 4 bound to it"));
+  ASSERT_FALSE(r.attempts.empty());
+  EXPECT_GT(r.attempts[0].mahalanobis2, 50.0);
+  const astro::Vec6 err = r.report.targets[0].roe * truth.observer().a_m - r.truth_a_roe;
+  EXPECT_LT(std::abs(err[1]), 1000.0) << err.transpose();
+}
+
 }  // namespace
 }  // namespace artms::fsw
