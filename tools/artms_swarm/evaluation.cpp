@@ -38,6 +38,7 @@ struct Row {
   long local = 0, remote = 0;
   double nis_sum = 0.0;  // cumulative bearing NIS (nav/targets.csv bearing_nis_sum)
   long nis_n = 0;
+  long health = 0;  // the target's own health (nav/targets.csv health; 0 healthy, 1 suspect)
 };
 
 constexpr const char* kRoeNames[6] = {"da", "dlambda", "dex", "dey", "dix", "diy"};
@@ -107,6 +108,7 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
         }
         r.local = tab.integer(k, "local_measurements");
         r.remote = tab.integer(k, "remote_measurements");
+        if (tab.has("health")) r.health = tab.integer(k, "health");
         if (tab.has("bearing_nis_sum")) {
           r.nis_sum = tab.number(k, "bearing_nis_sum");
           r.nis_n = tab.integer(k, "bearing_updates");
@@ -138,6 +140,7 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
   struct Series {
     std::vector<double> t_s, range, nees, nis_sum;
     std::vector<long> nis_n;
+    std::vector<long> health;
     std::vector<astro::Vec6> err, sig;
     long local = 0, remote = 0;
   };
@@ -166,6 +169,7 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     s.nees.push_back(nees);
     s.nis_sum.push_back(r.nis_sum);
     s.nis_n.push_back(r.nis_n);
+    s.health.push_back(r.health);
     s.local = r.local;
     s.remote = r.remote;
     char buf[160];
@@ -180,7 +184,7 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
       std::snprintf(buf, sizeof buf, ",%.4f", sig[i]);
       out << buf;
     }
-    std::snprintf(buf, sizeof buf, ",%ld,%ld,0,%.4f\n", r.local, r.remote, nees);
+    std::snprintf(buf, sizeof buf, ",%ld,%ld,%ld,%.4f\n", r.local, r.remote, r.health, nees);
     out << buf;
   }
   for (auto& [key, s] : series) {
@@ -216,18 +220,25 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     // steps with some ROE error beyond 3 and 5 sigma, and the longest run of
     // such steps (orbits).
     for (const double k : {3.0, 5.0}) {
-      std::size_t beyond = 0, run = 0, longest = 0;
+      std::size_t beyond = 0, run = 0, longest = 0, silent = 0, silent_run = 0, silent_longest = 0;
       for (std::size_t m = 0; m < n; ++m) {
         bool out = false;
         for (int i = 0; i < 6; ++i) out = out || std::abs(s.err[m][i]) > k * s.sig[m][i];
         beyond += out ? 1 : 0;
         run = out ? run + 1 : 0;
         longest = std::max(longest, run);
+        // Beyond while the target reports itself healthy: silent over-confidence.
+        const bool quiet = out && s.health[m] == 0;
+        silent += quiet ? 1 : 0;
+        silent_run = quiet ? silent_run + 1 : 0;
+        silent_longest = std::max(silent_longest, silent_run);
       }
       const std::string tag = k == 3.0 ? "3sigma" : "5sigma";
       j["frac_beyond_" + tag] = static_cast<double>(beyond) / static_cast<double>(n);
       const double step_s = n > 1 ? (s.t_s.back() - s.t_s.front()) / static_cast<double>(n - 1) : 0.0;
       j["longest_beyond_" + tag + "_orbits"] = static_cast<double>(longest) * step_s / period_s;
+      j["frac_beyond_" + tag + "_reported_healthy"] = static_cast<double>(silent) / static_cast<double>(n);
+      j["longest_beyond_" + tag + "_reported_healthy_orbits"] = static_cast<double>(silent_longest) * step_s / period_s;
     }
     double nees_sum = 0.0;
     std::size_t nees_n = 0, nees_in = 0;

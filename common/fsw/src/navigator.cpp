@@ -109,6 +109,7 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
     }
   }
   has_estimate_.assign(target_ids_.size(), false);
+  suspect_.assign(target_ids_.size(), false);
   last_bod_.resize(target_ids_.size());
   bod_opt_ = bod_options(up.tuning.bod);
   if (up.tuning.bod.enabled) next_bod_ = up.epoch.plus_seconds(up.tuning.bod.period_s);
@@ -218,7 +219,15 @@ void Navigator::add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u
   direct_.emplace_back(t, u_eci);
 }
 
+void Navigator::set_suspect(int k, bool on, const std::string& why) {
+  if (k < 0 || suspect_[static_cast<std::size_t>(k)] == on) return;
+  suspect_[static_cast<std::size_t>(k)] = on;
+  messages_.push_back("SOD target " + target_ids_[static_cast<std::size_t>(k)] +
+                      (on ? " suspect (health 1): " : " healthy again: ") + why);
+}
+
 void Navigator::record_nis(int k, const sod::UpdateSummary& s) {
+  if (k >= 0 && s.usable) set_suspect(k, false, "a bearing fits its estimate again");
   if (k < 0 || !std::isfinite(s.nis) || (!s.usable && !s.gated)) return;
   nis_sum_[static_cast<std::size_t>(k)] += s.nis;
   ++nis_n_[static_cast<std::size_t>(k)];
@@ -278,6 +287,7 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
     P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Pk;
   }
   filter_->initialize(g.t, filter_->make_state(obs, roes), P);
+  suspect_.assign(target_ids_.size(), false);
   tracks_.clear();
   reinit_pending_ = false;
   std::string what;
@@ -406,6 +416,10 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       messages_.push_back("IMP track " + std::to_string(e.track) + " unbound from target " +
                           target_ids_[static_cast<std::size_t>(as.target)] + ": " +
                           std::to_string(as.gated_in_row) + " successive bearings refused by the gate");
+      set_suspect(as.target, true,
+                  "the bearings of its IMP track " + std::to_string(e.track) +
+                      " no longer fit its estimate (a manoeuvre, a swap or an over-confident filter); until one fits "
+                      "again or BOD re-initialises it");
       as = Association{};
       as.last = e.t;
     }
@@ -535,6 +549,7 @@ void Navigator::check_health() {
     for (auto& [tid, as] : tracks_) {
       if (as.target == ki) as = Association{};
     }
+    suspect_[k] = false;
     if (have) {
       f.reinitialize_target(ki, roe, P);
     } else {
@@ -620,6 +635,7 @@ double Navigator::bod_distance2(int k, const OsculatingRoe& b) const {
 
 void Navigator::set_target_from_bod(int k, int track, const OsculatingRoe& b, astro::TimeTT t, const std::string& why) {
   filter_->reinitialize_target(k, b.roe, b.P);
+  suspect_[static_cast<std::size_t>(k)] = false;
   has_estimate_[static_cast<std::size_t>(k)] = true;
   for (auto& [tid, as] : tracks_) {
     if (as.target == k) as = Association{};
@@ -984,6 +1000,7 @@ NavReport Navigator::report(astro::TimeTT t) const {
     tr.remote_measurements = remote_[k];
     tr.bearing_nis_sum = nis_sum_[k];
     tr.bearing_updates = nis_n_[k];
+    tr.health = suspect_[k] ? 1 : 0;
     r.targets.push_back(tr);
   }
   return r;

@@ -404,6 +404,7 @@ bus::NavTelemetry Observer::navigation(astro::TimeTT t) const {
       e.remote_measurements = tr.remote_measurements;
       e.bearing_nis_sum = tr.bearing_nis_sum;
       e.bearing_updates = tr.bearing_updates;
+      e.health = static_cast<bus::Health>(tr.health);
       nav.targets.push_back(std::move(e));
     }
   } else if (last_fix_) {

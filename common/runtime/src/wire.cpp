@@ -305,6 +305,7 @@ bus::NavTelemetry from_wire(const artms_msg_NavTelemetry& m) {
     t.remote_measurements = e.remote_measurements;
     t.bearing_nis_sum = e.bearing_nis_sum;
     t.bearing_updates = e.bearing_updates;
+    t.health = static_cast<bus::Health>(e.health);
     n.targets.push_back(t);
   }
   n.isl_sent = m.isl_sent;
@@ -333,6 +334,7 @@ void write(dds::Writer<artms_msg_NavTelemetry>& w, const bus::NavTelemetry& n) {
     est[k].remote_measurements = t.remote_measurements;
     est[k].bearing_nis_sum = t.bearing_nis_sum;
     est[k].bearing_updates = t.bearing_updates;
+    est[k].health = static_cast<std::uint8_t>(t.health);
   }
   view(m.targets, est);
   m.isl_sent = n.isl_sent;

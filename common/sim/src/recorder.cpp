@@ -119,7 +119,7 @@ Recorder::Recorder(const config::Scenario& sc, const std::string& out_dir)
                                     "t_utc,t_tt_ns,observer,target,da,dlambda,dex,dey,dix,diy,"
                                     "sigma_da,sigma_dlambda,sigma_dex,sigma_dey,sigma_dix,sigma_diy,"
                                     "local_measurements,remote_measurements,covariance_upper,bearing_nis_sum,"
-                                    "bearing_updates");
+                                    "bearing_updates,health");
   gnss_ = std::make_unique<Sink>(dir / "gnss.csv", "t_utc,t_tt_ns,spacecraft,valid,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps");
   // One row per (broadcast, directed link): the crosslink emulator's outcome.
   isl_ = std::make_unique<Sink>(
@@ -197,7 +197,7 @@ void Recorder::add(const bus::NavTelemetry& m) {
     for (std::size_t r = 0; r < 6; ++r) {
       for (std::size_t c = r; c < 6; ++c) line += fmt(r == 0 && c == 0 ? "%.9e" : " %.9e", e.covariance_roe[r * 6 + c]);
     }
-    line += fmt(",%.9e,%u", e.bearing_nis_sum, e.bearing_updates);
+    line += fmt(",%.9e,%u,%u", e.bearing_nis_sum, e.bearing_updates, static_cast<unsigned>(e.health));
     targets_->add(m.t_tt_ns, m.observer, line);
   }
 }

@@ -197,6 +197,10 @@ struct TargetEstimate {
   std::uint32_t local_measurements = 0, remote_measurements = 0;
   double bearing_nis_sum = 0.0;      // sum of the NIS of every bearing update so far
   std::uint32_t bearing_updates = 0;  // how many
+  // This target's estimate: healthy, or suspect (kReinitialising: its bound
+  // track's bearings were refused by the gate and none has fitted since; it
+  // stays so until one fits or BOD or the a-priori re-initialises it).
+  Health health = Health::kHealthy;
 };
 
 struct NavTelemetry {

@@ -136,6 +136,7 @@ struct TargetReport {
   // (2 degrees of freedom each) and how many (NIS consistency, summary.json).
   double bearing_nis_sum = 0.0;
   std::uint32_t bearing_updates = 0;
+  int health = 0;  // 0 healthy, 1 suspect (bus::TargetEstimate::health)
 };
 
 struct NavReport {
@@ -327,6 +328,10 @@ class Navigator {
   std::optional<astro::TimeTT> next_bod_;
   std::size_t bod_attempts_ = 0, bod_usable_ = 0;
   std::vector<bus::BodAttempt> bod_records_;
+  // Per target: its bound track's bearings were refused by the gate and none
+  // has fitted since (telemetry health 1, "suspect").
+  std::vector<bool> suspect_;
+  void set_suspect(int k, bool on, const std::string& why);
   void run_bod(astro::TimeTT t_est);
   // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating
   // ROE relative to the observer's osculating elements observer_osc at t
