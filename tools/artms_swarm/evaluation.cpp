@@ -219,21 +219,21 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     // Over-confidence at a glance (whole run, any ROE): the fraction of
     // steps with some ROE error beyond 3 and 5 sigma, and the longest run of
     // such steps (orbits).
-    for (const double k : {3.0, 5.0}) {
+    for (const double n_sigma : {3.0, 5.0}) {
       std::size_t beyond = 0, run = 0, longest = 0, silent = 0, silent_run = 0, silent_longest = 0;
       for (std::size_t m = 0; m < n; ++m) {
-        bool out = false;
-        for (int i = 0; i < 6; ++i) out = out || std::abs(s.err[m][i]) > k * s.sig[m][i];
-        beyond += out ? 1 : 0;
-        run = out ? run + 1 : 0;
+        bool outside = false;
+        for (int i = 0; i < 6; ++i) outside = outside || std::abs(s.err[m][i]) > n_sigma * s.sig[m][i];
+        beyond += outside ? 1 : 0;
+        run = outside ? run + 1 : 0;
         longest = std::max(longest, run);
         // Beyond while the target reports itself healthy: silent over-confidence.
-        const bool quiet = out && s.health[m] == 0;
+        const bool quiet = outside && s.health[m] == 0;
         silent += quiet ? 1 : 0;
         silent_run = quiet ? silent_run + 1 : 0;
         silent_longest = std::max(silent_longest, silent_run);
       }
-      const std::string tag = k == 3.0 ? "3sigma" : "5sigma";
+      const std::string tag = n_sigma == 3.0 ? "3sigma" : "5sigma";
       j["frac_beyond_" + tag] = static_cast<double>(beyond) / static_cast<double>(n);
       const double step_s = n > 1 ? (s.t_s.back() - s.t_s.front()) / static_cast<double>(n - 1) : 0.0;
       j["longest_beyond_" + tag + "_orbits"] = static_cast<double>(longest) * step_s / period_s;
