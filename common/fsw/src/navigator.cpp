@@ -633,6 +633,15 @@ double Navigator::bod_distance2(int k, const OsculatingRoe& b) const {
   return std::isfinite(d2) ? d2 : 1e30;
 }
 
+void Navigator::bind_track(int track, int k, astro::TimeTT t) {
+  Association& as = tracks_[track];
+  as = Association{};
+  as.target = k;
+  as.last = t;
+  const auto h = history_.find(track);
+  as.segment = h != history_.end() && !h->second.empty() ? h->second.back().segment : 1;
+}
+
 void Navigator::set_target_from_bod(int k, int track, const OsculatingRoe& b, astro::TimeTT t, const std::string& why) {
   filter_->reinitialize_target(k, b.roe, b.P);
   suspect_[static_cast<std::size_t>(k)] = false;
@@ -640,12 +649,7 @@ void Navigator::set_target_from_bod(int k, int track, const OsculatingRoe& b, as
   for (auto& [tid, as] : tracks_) {
     if (as.target == k) as = Association{};
   }
-  Association& as = tracks_[track];
-  as = Association{};
-  as.target = k;
-  as.last = t;
-  const auto h = history_.find(track);
-  as.segment = h != history_.end() && !h->second.empty() ? h->second.back().segment : 1;
+  bind_track(track, k, t);
   messages_.push_back("SOD target " + target_ids_[static_cast<std::size_t>(k)] + " " + why + "; IMP track " +
                       std::to_string(track) + " bound to it");
 }
@@ -850,11 +854,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       set_target_from_bod(best, track, b, t_est, buf);
     } else {
       decided(best, "track bound to the target (BOD consistent with SOD)", d2_best);
-      Association& as = tracks_[track];
-      as = Association{};
-      as.target = best;
-      as.last = t_est;
-      as.segment = history_.count(track) && !history_[track].empty() ? history_[track].back().segment : 1;
+      bind_track(track, best, t_est);
       std::snprintf(buf, sizeof buf, "IMP track %d bound to target %s by BOD (squared distance %.1f)", track,
                     target_ids_[static_cast<std::size_t>(best)].c_str(), d2_best);
       messages_.push_back(buf);

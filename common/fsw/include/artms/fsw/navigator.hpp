@@ -340,6 +340,8 @@ class Navigator {
                                                    const astro::QnsElements& observer_osc);
   // Health check (1): squared Mahalanobis distance between b and SOD's target k.
   [[nodiscard]] double bod_distance2(int k, const OsculatingRoe& b) const;
+  // Binds SAMUS track `track` to target k at t (in the segment its latest bearing had).
+  void bind_track(int track, int k, astro::TimeTT t);
   void set_target_from_bod(int k, int track, const OsculatingRoe& b, astro::TimeTT t, const std::string& why);
   // What target k restarts from at t (the observer's osculating elements
   // then): its latest BOD estimate, else the a-priori (drifted to t); false
