@@ -991,7 +991,8 @@ class Parser {
   }
 
   void parse_camera(const Val& v, CameraConfig& c) {
-    Map m(ctx_, v, {"model", "boresight", "cadence", "pointing_error_deg", "jitter_deg", "profile"});
+    Map m(ctx_, v, {"model", "boresight", "cadence", "pointing_error_deg", "jitter_deg", "profile",
+                    "time_tag_correction_s"});
     if (!m.ok()) return;
     if (const Val* mv = m.find("model")) {
       if (auto model =
@@ -1013,6 +1014,7 @@ class Parser {
     number_field(ctx_, m, "pointing_error_deg", c.pointing_error_deg, Range{0.0, 90.0, false, true},
                  "deg");
     number_field(ctx_, m, "jitter_deg", c.jitter_deg, Range{0.0, 90.0, false, true}, "deg");
+    number_field(ctx_, m, "time_tag_correction_s", c.time_tag_correction_s, closed(-60.0, 60.0), "s");
     if (const Val* pv = m.find("profile")) {
       const auto t = read_string(ctx_, *pv, "nominal or flight-like");
       if (t && *t == "flight-like") {
@@ -1259,7 +1261,8 @@ class Parser {
       Map sm(ctx_, *sv,
              {"period", "bearing_sigma_arcsec", "eps_assign", "eps_ambig",
               "max_steps_without_update", "max_large_residuals", "underweighting",
-              "adaptive_process_noise", "process_noise_scale"});
+              "adaptive_process_noise", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
+              "ballistic"});
       if (sm.ok()) {
         duration_field(ctx_, sm, "period", t.sod.period_s, false);
         number_field(ctx_, sm, "bearing_sigma_arcsec", t.sod.bearing_sigma_arcsec,
@@ -1280,6 +1283,31 @@ class Parser {
         number_field(ctx_, sm, "underweighting", t.sod.underweighting, non_negative());
         bool_field(ctx_, sm, "adaptive_process_noise", t.sod.adaptive_process_noise);
         number_field(ctx_, sm, "process_noise_scale", t.sod.process_noise_scale, positive());
+        int_field(ctx_, sm, "nis_window", t.sod.nis_window, 0, 1000);
+        number_field(ctx_, sm, "nis_false_alarm", t.sod.nis_false_alarm, Range{0.0, 0.5, true, false});
+        if (const Val* tv = sm.find("time_tag")) {
+          Map tm(ctx_, *tv, {"estimate", "sigma_s", "drift_sigma_ppm"});
+          if (tm.ok()) {
+            if (const Val* ev = tm.find("estimate")) {
+              const auto e = read_string(ctx_, *ev, "none, offset or drift");
+              using E = SodTuning::TimeTagEstimation;
+              if (e && *e == "none") t.sod.time_tag = E::kNone;
+              else if (e && *e == "offset") t.sod.time_tag = E::kOffset;
+              else if (e && *e == "drift") t.sod.time_tag = E::kOffsetAndDrift;
+              else if (e) ctx_.error(*ev, "expected none, offset or drift, got " + describe(ev->node));
+            }
+            number_field(ctx_, tm, "sigma_s", t.sod.time_tag_sigma_s, Range{0.0, 60.0, true, true}, "s");
+            number_field(ctx_, tm, "drift_sigma_ppm", t.sod.time_tag_drift_sigma_ppm, Range{0.0, 1e4, true, true},
+                         "ppm");
+          }
+        }
+        if (const Val* bv = sm.find("ballistic")) {
+          Map bm2(ctx_, *bv, {"estimate", "sigma_fraction"});
+          if (bm2.ok()) {
+            bool_field(ctx_, bm2, "estimate", t.sod.estimate_ballistic);
+            number_field(ctx_, bm2, "sigma_fraction", t.sod.ballistic_sigma_fraction, Range{0.0, 10.0, true, true});
+          }
+        }
       }
     }
   }

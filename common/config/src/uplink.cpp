@@ -60,7 +60,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
         {"camera",
          {{"model", o.camera.model},
           {"boresight_plus_velocity", o.camera.boresight == astro::Boresight::kPlusVelocity},
-          {"cadence_s", o.camera.cadence_s}}},
+          {"cadence_s", o.camera.cadence_s},
+          {"time_tag_correction_s", o.camera.time_tag_correction_s}}},
         {"gnss",
          {{"enabled", o.gnss.enabled}, {"period_s", o.gnss.period_s},
           {"sigma_position_m", o.gnss.sigma_position_m},
@@ -91,7 +92,14 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"max_large_residuals", u.tuning.sod.max_large_residuals},
           {"underweighting", u.tuning.sod.underweighting},
           {"adaptive_process_noise", u.tuning.sod.adaptive_process_noise},
-          {"process_noise_scale", u.tuning.sod.process_noise_scale}}}}},
+          {"process_noise_scale", u.tuning.sod.process_noise_scale},
+          {"nis_window", u.tuning.sod.nis_window},
+          {"nis_false_alarm", u.tuning.sod.nis_false_alarm},
+          {"time_tag", static_cast<int>(u.tuning.sod.time_tag)},
+          {"time_tag_sigma_s", u.tuning.sod.time_tag_sigma_s},
+          {"time_tag_drift_sigma_ppm", u.tuning.sod.time_tag_drift_sigma_ppm},
+          {"estimate_ballistic", u.tuning.sod.estimate_ballistic},
+          {"ballistic_sigma_fraction", u.tuning.sod.ballistic_sigma_fraction}}}}},
       {"crosslink",
        {{"enabled", u.crosslink_enabled}, {"period_s", u.isl_period_s},
         {"latency_s", u.isl_latency_s}, {"swarm_max_cadence_s", u.swarm_max_cadence_s},
@@ -149,6 +157,7 @@ ObserverUplink read_uplink(const std::string& path) {
                                       ? astro::Boresight::kPlusVelocity
                                       : astro::Boresight::kMinusVelocity;
     u.observer.camera.cadence_s = o.at("camera").at("cadence_s").get<double>();
+    u.observer.camera.time_tag_correction_s = o.at("camera").at("time_tag_correction_s").get<double>();
     const auto& g = o.at("gnss");
     u.observer.gnss.enabled = g.at("enabled").get<bool>();
     u.observer.gnss.period_s = g.at("period_s").get<double>();
@@ -193,6 +202,15 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.underweighting = sod.at("underweighting").get<double>();
     u.tuning.sod.adaptive_process_noise = sod.at("adaptive_process_noise").get<bool>();
     u.tuning.sod.process_noise_scale = sod.at("process_noise_scale").get<double>();
+    u.tuning.sod.nis_window = sod.at("nis_window").get<int>();
+    u.tuning.sod.nis_false_alarm = sod.at("nis_false_alarm").get<double>();
+    const int tt = sod.at("time_tag").get<int>();
+    if (tt < 0 || tt > 2) throw std::runtime_error(path + ": tuning.sod.time_tag must be 0, 1 or 2");
+    u.tuning.sod.time_tag = static_cast<SodTuning::TimeTagEstimation>(tt);
+    u.tuning.sod.time_tag_sigma_s = sod.at("time_tag_sigma_s").get<double>();
+    u.tuning.sod.time_tag_drift_sigma_ppm = sod.at("time_tag_drift_sigma_ppm").get<double>();
+    u.tuning.sod.estimate_ballistic = sod.at("estimate_ballistic").get<bool>();
+    u.tuning.sod.ballistic_sigma_fraction = sod.at("ballistic_sigma_fraction").get<double>();
     const auto& c = j.at("crosslink");
     u.crosslink_enabled = c.at("enabled").get<bool>();
     u.isl_period_s = c.at("period_s").get<double>();

@@ -153,4 +153,11 @@ Vec3 ForceModel::perturbation_eci(astro::TimeTT t, const StateVector& x,
   return evaluate(t, x, sc, false);
 }
 
+Vec3 ForceModel::unit_ballistic_drag_eci(astro::TimeTT t, const StateVector& x) const {
+  if (!options_.drag) return Vec3::Zero();
+  const Vec3 r_ecef = astro::R_ecef_from_eci(t) * x.r_m;
+  const double rho = atmosphere_->density_kgpm3(x.r_m, r_ecef, sun_position_eci_m(t));
+  return drag_acceleration_mps2(x.r_m, x.v_mps, rho, 1.0, 1.0);
+}
+
 }  // namespace artms::dynamics

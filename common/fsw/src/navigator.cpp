@@ -62,6 +62,18 @@ Eigen::Vector3d los_eci_of(const Eigen::VectorXd& s) {
 
 }  // namespace
 
+// 1-sigma per axis of the unknown manoeuvre that inflates a target whose
+// bearings stopped fitting (docs/sod.md, health check 5): 2 cm/s per unit of
+// the RMS normalised innovation, between 2 cm/s and 1 m/s.
+double maneuver_sigma_mps(double mean_nis_or_d2) {
+  return std::clamp(0.02 * std::sqrt(std::max(mean_nis_or_d2, 0.0)), 0.02, 1.0);
+}
+
+double nominal_ballistic_m2pkg() {
+  const dynamics::SpacecraftProperties sc;
+  return sc.cd * sc.drag_area_m2 / sc.mass_kg;
+}
+
 sod::SodOptions sod_options(const config::SodTuning& t) {
   sod::SodOptions o;
   o.health.max_steps_without_update = t.max_steps_without_update;
@@ -69,6 +81,14 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   o.bearing_underweighting = t.underweighting;
   o.adaptive.enabled = t.adaptive_process_noise;
   o.q_target_a_roe_m2ps *= t.process_noise_scale;
+  o.health.nis_window = t.nis_window;
+  if (t.nis_window > 0) o.health.nis_max_mean = sod::chi2_quantile(2 * t.nis_window, 1.0 - t.nis_false_alarm) / t.nis_window;
+  // Auxiliary random walks: the offset wanders by 1 ms and the drift by 1 ppm
+  // per day; a target's effective ballistic coefficient (the density's
+  // day-to-day error times Cd A/m) by its initial 1-sigma per day.
+  o.q_time_tag_offset_s2ps = 1e-6 / 86400.0;
+  o.q_time_tag_drift_ps = 1e-12 / 86400.0;
+  o.q_ballistic_m4pkg2ps = std::pow(t.ballistic_sigma_fraction * nominal_ballistic_m2pkg(), 2) / 86400.0;
   o.validate();
   return o;
 }
@@ -110,6 +130,7 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   }
   has_estimate_.assign(target_ids_.size(), false);
   suspect_.assign(target_ids_.size(), false);
+  last_fit_t_.assign(target_ids_.size(), up.epoch);
   last_bod_.resize(target_ids_.size());
   bod_opt_ = bod_options(up.tuning.bod);
   if (up.tuning.bod.enabled) next_bod_ = up.epoch.plus_seconds(up.tuning.bod.period_s);
@@ -207,7 +228,8 @@ Navigator::Event Navigator::bearing_event(astro::TimeTT t, EventKind kind, int t
 
 void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci,
                             const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad, int segment) {
-  Event e = bearing_event(t, EventKind::kTrackBearing, track, u_eci, q_cam_from_eci, imp_sigma_rad);
+  Event e = bearing_event(t.plus_seconds(up_.observer.camera.time_tag_correction_s), EventKind::kTrackBearing, track,
+                          u_eci, q_cam_from_eci, imp_sigma_rad);
   e.segment = segment;
   e.direct = direct_assigned(t, u_eci);
   queue_.push_back(e);
@@ -215,7 +237,8 @@ void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u
 
 void Navigator::add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u_eci,
                            const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
-  queue_.push_back(bearing_event(t, EventKind::kDirectBearing, target, u_eci, q_cam_from_eci, imp_sigma_rad));
+  queue_.push_back(bearing_event(t.plus_seconds(up_.observer.camera.time_tag_correction_s), EventKind::kDirectBearing,
+                                target, u_eci, q_cam_from_eci, imp_sigma_rad));
   direct_.emplace_back(t, u_eci);
 }
 
@@ -227,7 +250,19 @@ void Navigator::set_suspect(int k, bool on, const std::string& why) {
 }
 
 void Navigator::record_nis(int k, const sod::UpdateSummary& s) {
-  if (k >= 0 && s.usable) set_suspect(k, false, "a bearing fits its estimate again");
+  if (k >= 0 && s.usable && suspect_[static_cast<std::size_t>(k)] && filter_) {
+    // Healthy again once a whole NIS window fits (or, without the window, one bearing).
+    const double nis = filter_->recent_mean_nis(k);
+    if (sod_opt_.health.nis_window == 0) {
+      set_suspect(k, false, "a bearing fits its estimate again");
+    } else if (std::isfinite(nis) && nis <= sod_opt_.health.nis_max_mean) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "the mean NIS of its last %d bearings is %.2f (<= %.2f)", sod_opt_.health.nis_window,
+                    nis, sod_opt_.health.nis_max_mean);
+      set_suspect(k, false, buf);
+    }
+  }
+  if (k >= 0 && s.usable) last_fit_t_[static_cast<std::size_t>(k)] = filter_ ? filter_->epoch() : astro::TimeTT{};
   if (k < 0 || !std::isfinite(s.nis) || (!s.usable && !s.gated)) return;
   nis_sum_[static_cast<std::size_t>(k)] += s.nis;
   ++nis_n_[static_cast<std::size_t>(k)];
@@ -259,14 +294,36 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
   const Mat6 J = astro::jacobian_qns_from_cartesian(g.x_eci);
   Mat6 P_obs = J * var_rv.asDiagonal() * J.transpose();
   P_obs += Mat6::Identity() * 1e-20;
+  const int n = static_cast<int>(target_ids_.size());
+  // Auxiliary states carry over a re-initialisation (the camera clock and
+  // the targets' drag did not change); from their uplinked 1-sigma at first.
+  Eigen::VectorXd aux;
+  Eigen::MatrixXd P_aux;
   if (!filter_) {
-    filter_.emplace(forces_, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{},
-                    sod::StateLayout{static_cast<int>(target_ids_.size()), 0}, sod_opt_);
+    using TT = config::SodTuning::TimeTagEstimation;
+    const auto& st = up_.tuning.sod;
+    sod::StateLayout layout{n, 0};
+    layout.n_time_tag = st.time_tag == TT::kNone ? 0 : st.time_tag == TT::kOffset ? 1 : 2;
+    layout.ballistic = st.estimate_ballistic;
+    filter_.emplace(forces_, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{}, layout, sod_opt_);
+    const int na = layout.size() - layout.aux_offset();
+    aux = Eigen::VectorXd::Zero(na);
+    Eigen::VectorXd var = Eigen::VectorXd::Zero(na);
+    if (layout.n_time_tag > 0) var[0] = st.time_tag_sigma_s * st.time_tag_sigma_s;
+    if (layout.n_time_tag > 1) var[1] = std::pow(st.time_tag_drift_sigma_ppm * 1e-6, 2);
+    for (int k = 0; layout.ballistic && k < n; ++k)
+      var[layout.ballistic_index(k) - layout.aux_offset()] = std::pow(st.ballistic_sigma_fraction * nominal_ballistic_m2pkg(), 2);
+    P_aux = var.asDiagonal();
+  } else {
+    const int a0 = filter_->layout().aux_offset(), na = filter_->layout().size() - a0;
+    aux = filter_->state().tail(na);
+    P_aux = filter_->covariance().bottomRightCorner(na, na);
   }
   std::vector<astro::Roe> roes;
-  const int n = static_cast<int>(target_ids_.size());
-  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(6 * (n + 1), 6 * (n + 1));
+  const int n_all = filter_->layout().size();
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(n_all, n_all);
   P.topLeftCorner<6, 6>() = P_obs;
+  if (aux.size() > 0) P.bottomRightCorner(aux.size(), aux.size()) = P_aux;
   int from_apriori = 0, from_bod = 0;
   for (int k = 0; k < n; ++k) {
     astro::Vec6 roe;
@@ -286,7 +343,7 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
     roes.push_back(astro::Roe::from_vector(roe));
     P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Pk;
   }
-  filter_->initialize(g.t, filter_->make_state(obs, roes), P);
+  filter_->initialize(g.t, filter_->make_state(obs, roes, aux), P);
   suspect_.assign(target_ids_.size(), false);
   tracks_.clear();
   reinit_pending_ = false;
@@ -388,6 +445,29 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
             taken = true;
           }
         }
+        const int k_best = static_cast<int>(order[0]);
+        if (best >= opt_.association_max_d2 && best < opt_.lost_max_d2 && second > opt_.association_ambiguity * best &&
+            !taken && f.counters(k_best).accepted > 0 &&
+            f.counters(k_best).steps_without_update >= opt_.lost_after_steps) {
+          // The target's own bearings stopped and a new track sits nearest
+          // its prediction, too far for its covariance: it moved (a
+          // manoeuvre) or the filter is over-confident. Inflate so that the
+          // mean d2 falls to a quarter of the association limit, and
+          // associate again from the next bearings.
+          const double sigma_dv = maneuver_sigma_mps(best);
+          const double since_s = astro::seconds_between(last_fit_t_[static_cast<std::size_t>(k_best)], e.t);
+          f.inflate_target_maneuver(k_best, sigma_dv, std::max(0.0, since_s));
+          char buf[360];
+          std::snprintf(buf, sizeof buf,
+                        "no bearing for %.0f s while the unbound IMP track %d is nearest its prediction (mean d2 "
+                        "%.3g over %d bearings, next target %.3g): a manoeuvre or an over-confident estimate; "
+                        "covariance inflated by an unknown manoeuvre of %.3g m/s (1-sigma per axis)",
+                        since_s, e.track, best, as.n, second, sigma_dv);
+          set_suspect(k_best, true, buf);
+          as.d2_sum.assign(target_ids_.size(), 0.0);
+          as.n = 0;
+          return;
+        }
         if (best < opt_.association_max_d2 && second > opt_.association_ambiguity * best && !taken) {
           as.target = static_cast<int>(order[0]);
           as.segment = e.segment;
@@ -425,6 +505,34 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
     }
   }
   check_health();
+  report_aux();
+}
+
+void Navigator::report_aux() {
+  if (!filter_) return;
+  const auto& f = *filter_;
+  const auto& L = f.layout();
+  if (L.size() == L.aux_offset() || (next_aux_report_ && f.epoch() < *next_aux_report_)) return;
+  next_aux_report_ = f.epoch().plus_seconds(3600.0);
+  const auto& x = f.state();
+  const auto sd = [&](int i) { return std::sqrt(f.covariance()(i, i)); };
+  std::string m = "SOD auxiliary states:";
+  char buf[160];
+  if (L.n_time_tag > 0) {
+    std::snprintf(buf, sizeof buf, " time-tag offset %+.4f s (1-sigma %.4f)", x[L.time_tag_offset()], sd(L.time_tag_offset()));
+    m += buf;
+  }
+  if (L.n_time_tag > 1) {
+    std::snprintf(buf, sizeof buf, ", drift %+.2f ppm (1-sigma %.2f)", 1e6 * x[L.time_tag_drift()], 1e6 * sd(L.time_tag_drift()));
+    m += buf;
+  }
+  for (int k = 0; L.ballistic && k < L.n_targets; ++k) {
+    std::snprintf(buf, sizeof buf, "%s differential Cd A/m of %s %+.5f m^2/kg (1-sigma %.5f)",
+                  L.n_time_tag > 0 || k > 0 ? ";" : "", target_ids_[static_cast<std::size_t>(k)].c_str(),
+                  x[L.ballistic_index(k)], sd(L.ballistic_index(k)));
+    m += buf;
+  }
+  messages_.push_back(m);
 }
 
 void Navigator::process_remote(const std::vector<Event>& group) {
@@ -541,8 +649,24 @@ void Navigator::check_health() {
   for (std::size_t k = 0; k < h.targets.size(); ++k) {
     const auto c = h.targets[k].condition;
     if (!has_estimate_[k]) continue;
-    if (c != sod::HealthCondition::kLargeResiduals && c != sod::HealthCondition::kOutOfRange) continue;
     const int ki = static_cast<int>(k);
+    if (c == sod::HealthCondition::kInconsistent) {
+      // Health check 5: the bearings no longer fit the covariance. The target
+      // is suspect until one fits the inflated estimate, and BOD's next
+      // attempt (check 1) re-initialises it if it is wrong, not just unsure.
+      const double nis = f.recent_mean_nis(ki);
+      const double sigma_dv = maneuver_sigma_mps(nis);
+      f.inflate_target_maneuver(ki, sigma_dv, f.recent_nis_span_s(ki));
+      char buf[300];
+      std::snprintf(buf, sizeof buf,
+                    "its bearings do not fit its covariance (health check 5: %s); covariance inflated by an "
+                    "unknown manoeuvre of %.3g m/s (1-sigma per axis)",
+                    h.targets[k].reason.c_str(), sigma_dv);
+      suspect_[k] = false;
+      set_suspect(ki, true, buf);
+      continue;
+    }
+    if (c != sod::HealthCondition::kLargeResiduals && c != sod::HealthCondition::kOutOfRange) continue;
     astro::Vec6 roe;
     astro::Mat6 P;
     const bool have = restart_estimate(ki, f.epoch(), f.observer(), roe, P);

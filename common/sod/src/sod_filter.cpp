@@ -60,6 +60,15 @@ void SodOptions::validate() const {
             "q_target_a_roe_m2ps[" + std::to_string(i) + "]", "must be finite and >= 0");
   }
   require(std::isfinite(q_aux) && q_aux >= 0.0, "q_aux", "must be finite and >= 0");
+  require(std::isfinite(q_time_tag_offset_s2ps) && q_time_tag_offset_s2ps >= 0.0, "q_time_tag_offset_s2ps",
+          "must be finite and >= 0");
+  require(std::isfinite(q_time_tag_drift_ps) && q_time_tag_drift_ps >= 0.0, "q_time_tag_drift_ps",
+          "must be finite and >= 0");
+  require(std::isfinite(q_ballistic_m4pkg2ps) && q_ballistic_m4pkg2ps >= 0.0, "q_ballistic_m4pkg2ps",
+          "must be finite and >= 0");
+  require(health.nis_window >= 0, "health.nis_window", "must be >= 0 (0 disables)");
+  require(std::isfinite(health.nis_max_mean) && health.nis_max_mean > 0.0, "health.nis_max_mean",
+          "must be finite and > 0");
   require(adaptive.forgetting > 0.0 && adaptive.forgetting < 1.0, "adaptive.forgetting",
           "must be in (0, 1)");
   require(std::isfinite(adaptive.floor_factor) && adaptive.floor_factor >= 0.0 &&
@@ -80,6 +89,19 @@ void SodOptions::validate() const {
           "health.min_a_m", "must be positive and below health.max_a_m");
   require(health.max_e > 0.0 && health.max_e < 1.0, "health.max_e", "must be in (0, 1)");
   require(health.max_a_roe_m > 0.0, "health.max_a_roe_m", "must be > 0");
+}
+
+double chi2_quantile(int dof, double p) {
+  if (dof < 1) throw std::invalid_argument("chi2_quantile: dof must be >= 1");
+  if (!(p > 0.0 && p < 1.0)) throw std::invalid_argument("chi2_quantile: p must be in (0, 1)");
+  // Standard normal quantile z(p) by bisection on 0.5 erfc(-z / sqrt 2) = p.
+  double lo = -40.0, hi = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p ? lo : hi) = mid;
+  }
+  const double z = 0.5 * (lo + hi), k = dof, c = 2.0 / (9.0 * k);
+  return k * std::pow(std::max(0.0, 1.0 - c + z * std::sqrt(c)), 3);
 }
 
 BearingMeasurement bearing_measurement_from_unit_eci(TimeTT t, int target, const Vec3& los_eci,
@@ -109,6 +131,7 @@ std::string_view to_string(HealthCondition c) {
     case HealthCondition::kNoMeasurementUpdate: return "no_measurement_update";
     case HealthCondition::kLargeResiduals: return "large_residuals";
     case HealthCondition::kOutOfRange: return "out_of_range";
+    case HealthCondition::kInconsistent: return "inconsistent";
   }
   return "unknown";
 }
@@ -139,28 +162,35 @@ SodFilter::SodFilter(const dynamics::ForceModel& forces,
       target_prop_(forces, target_sc, options.propagator),
       gm_m3ps2_(forces.gm_m3ps2()),
       layout_(layout),
-      options_(std::move(options)) {
+      options_(std::move(options)),
+      forces_(forces) {
   options_.validate();
   if (layout_.n_targets < 1) throw std::invalid_argument("StateLayout.n_targets: must be >= 1");
   if (layout_.n_aux < 0) throw std::invalid_argument("StateLayout.n_aux: must be >= 0");
+  if (layout_.n_time_tag < 0 || layout_.n_time_tag > 2)
+    throw std::invalid_argument("StateLayout.n_time_tag: must be 0, 1 or 2");
   const int n = layout_.size();
   require(n + options_.ukf_kappa > 0.0, "ukf_kappa", "n + ukf_kappa must be > 0 (n = state size)");
   ukf_weights(n, options_, gamma_, wm_, wc_);
   counters_.assign(layout_.n_targets, {});
   bod_status_.assign(layout_.n_targets, {});
   last_bod_.assign(layout_.n_targets, std::nullopt);
+  recent_nis_.assign(layout_.n_targets, std::vector<double>(static_cast<std::size_t>(options_.health.nis_window), 0.0));
+  recent_nis_t_.assign(layout_.n_targets, std::vector<TimeTT>(static_cast<std::size_t>(options_.health.nis_window)));
+  recent_nis_count_.assign(layout_.n_targets, 0);
 }
 
 VectorXd SodFilter::make_state(const QnsElements& observer, const std::vector<Roe>& roe,
                                const VectorXd& aux) const {
   if (static_cast<int>(roe.size()) != layout_.n_targets)
     throw std::invalid_argument("SodFilter::make_state: need one ROE per target");
-  if (aux.size() != layout_.n_aux)
+  const int n_aux_all = layout_.size() - layout_.aux_offset();
+  if (aux.size() != 0 && aux.size() != n_aux_all)
     throw std::invalid_argument("SodFilter::make_state: aux has the wrong size");
-  VectorXd x(layout_.size());
+  VectorXd x = VectorXd::Zero(layout_.size());
   x.segment<6>(0) = observer.as_vector();
   for (int k = 0; k < layout_.n_targets; ++k) x.segment<6>(layout_.target_offset(k)) = roe[k].as_vector();
-  if (layout_.n_aux > 0) x.tail(layout_.n_aux) = aux;
+  if (aux.size() > 0) x.tail(n_aux_all) = aux;
   return x;
 }
 
@@ -183,7 +213,11 @@ void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
   const double a2 = x_[StateLayout::kA] * x_[StateLayout::kA];
   for (int k = 0; k < layout_.n_targets; ++k)
     q_nominal_.segment<6>(layout_.target_offset(k)) = options_.q_target_a_roe_m2ps / a2;
-  if (layout_.n_aux > 0) q_nominal_.tail(layout_.n_aux).setConstant(options_.q_aux);
+  if (layout_.n_aux > 0) q_nominal_.segment(layout_.aux_offset(), layout_.n_aux).setConstant(options_.q_aux);
+  if (layout_.n_time_tag > 0) q_nominal_[layout_.time_tag_offset()] = options_.q_time_tag_offset_s2ps;
+  if (layout_.n_time_tag > 1) q_nominal_[layout_.time_tag_drift()] = options_.q_time_tag_drift_ps;
+  if (layout_.ballistic)
+    q_nominal_.segment(layout_.ballistic_offset(), layout_.n_targets).setConstant(options_.q_ballistic_m4pkg2ps);
   q_ = q_nominal_;
   pending_dx2_ = VectorXd::Zero(n);
   pending_ = false;
@@ -194,6 +228,7 @@ void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
   steps_without_update_ = 0;
   consecutive_large_gnss_ = 0;
   rejected_total_ = 0;
+  recent_nis_count_.assign(layout_.n_targets, 0);
   initialized_ = true;
 }
 
@@ -300,6 +335,7 @@ TimeUpdateSummary SodFilter::time_update(TimeTT t) {
     s.why = std::string("propagation of a sigma point failed: ") + e.what();
     return s;
   }
+  apply_aux_dynamics(X, Y, s.dt_s);
   // Weighted mean about the central point (angles wrapped), then covariance.
   VectorXd mean = Y.col(0);
   for (int j = 1; j < m; ++j) mean += wm_[j] * state_difference(Y.col(j), Y.col(0));
@@ -319,6 +355,29 @@ TimeUpdateSummary SodFilter::time_update(TimeTT t) {
   for (auto& c : counters_) ++c.steps_without_update;
   s.usable = true;
   return s;
+}
+
+void SodFilter::apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) const {
+  const int m = static_cast<int>(X.cols());
+  // Time-tag offset with drift: offset(t + dt) = offset(t) + drift dt.
+  if (layout_.n_time_tag > 1) {
+    Y.row(layout_.time_tag_offset()) += dt_s * X.row(layout_.time_tag_drift());
+  }
+  if (!layout_.ballistic) return;
+  // Differential drag of target k beyond the onboard nominal: a ballistic
+  // coefficient dB_k more than the nominal adds dB_k f_T(B = 1) along-track,
+  // d(delta a)/dt = 2 f_T / (n a) (GVE, near-circular orbit), at the observer's
+  // mean position (the targets are within ~1000 km: same density to first order).
+  const QnsElements obs = QnsElements::from_vector(x_.head<6>());
+  const astro::StateVector xo = astro::cartesian_from_qns(obs, gm_m3ps2_);
+  const Vec3 drag = forces_.unit_ballistic_drag_eci(t_, xo);
+  const double f_t = (astro::R_rtn_from_eci(xo) * drag)[1];
+  const double n = std::sqrt(gm_m3ps2_ / std::pow(obs.a_m, 3));
+  const double rate = 2.0 * f_t / (n * obs.a_m);  // per unit dB, 1/s
+  for (int k = 0; k < layout_.n_targets; ++k) {
+    const int ia = layout_.target_offset(k) + StateLayout::kDa, ib = layout_.ballistic_index(k);
+    for (int j = 0; j < m; ++j) Y(ia, j) += rate * X(ib, j) * dt_s;
+  }
 }
 
 bool SodFilter::store(VectorXd x, MatrixXd P) {
@@ -387,6 +446,13 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
     return s;
   }
 
+  if (target >= 0 && options_.health.nis_window > 0) {
+    auto& ring = recent_nis_[static_cast<std::size_t>(target)];
+    int& count = recent_nis_count_[static_cast<std::size_t>(target)];
+    ring[static_cast<std::size_t>(count % options_.health.nis_window)] = s.nis;
+    recent_nis_t_[static_cast<std::size_t>(target)][static_cast<std::size_t>(count % options_.health.nis_window)] = t_;
+    ++count;
+  }
   // Health check (3): successive large pre-fit residuals (gated ones included).
   int& large = target >= 0 ? counters_[target].consecutive_large_residuals : consecutive_large_gnss_;
   large = s.mahalanobis > options_.health.large_residual_mahalanobis ? large + 1 : 0;
@@ -439,15 +505,17 @@ UpdateSummary SodFilter::update_bearing(const BearingMeasurement& meas) {
   const double gm = gm_m3ps2_;
   const Mat3 R = meas.R_v_from_eci;
   MeasurementModel model;
-  model.cutoff = off + StateLayout::kBlock;
+  model.cutoff = layout_.n_time_tag > 0 ? layout_.time_tag_offset() + 1 : off + StateLayout::kBlock;
   model.angle = {true, true};
   model.underweighting = options_.bearing_underweighting;
-  model.h = [off, gm, R](const VectorXd& x) -> VectorXd {
+  const int i_dt = layout_.n_time_tag > 0 ? layout_.time_tag_offset() : -1;
+  model.h = [off, gm, R, i_dt](const VectorXd& x) -> VectorXd {
     const QnsElements obs = QnsElements::from_vector(x.head<6>());
     const QnsElements tgt = astro::qns_from_roe(obs, Roe::from_vector(x.segment<6>(off)));
-    const astro::Bearing b = astro::bearing_from_eci(astro::cartesian_from_qns(obs, gm).r_m,
-                                                     astro::cartesian_from_qns(tgt, gm).r_m, R);
-    return b.as_vector();
+    const astro::StateVector so = astro::cartesian_from_qns(obs, gm), st = astro::cartesian_from_qns(tgt, gm);
+    // A time tag late by dt: the image saw both spacecraft at t - dt (first order).
+    const double dt = i_dt >= 0 ? x[i_dt] : 0.0;
+    return astro::bearing_from_eci(so.r_m - dt * so.v_mps, st.r_m - dt * st.v_mps, R).as_vector();
   };
   const Eigen::Vector2d r(meas.sigma_az_rad * meas.sigma_az_rad,
                           meas.sigma_el_rad * meas.sigma_el_rad);
@@ -618,6 +686,11 @@ HealthReport SodFilter::health() const {
     } else if (c.steps_without_update > h.max_steps_without_update) {
       st = {HealthCondition::kNoMeasurementUpdate,
             std::to_string(c.steps_without_update) + " steps without a bearing update"};
+    } else if (const double nis = recent_mean_nis(k); std::isfinite(nis) && nis > h.nis_max_mean) {
+      std::ostringstream why;
+      why.precision(3);
+      why << "mean NIS " << nis << " of the last " << h.nis_window << " bearings above " << h.nis_max_mean;
+      st = {HealthCondition::kInconsistent, why.str()};
     }
   }
   return r;
@@ -637,6 +710,69 @@ void SodFilter::reinitialize_target(int target, const Vec6& roe, const Mat6& P_r
   P_.block<6, 6>(off, off) = 0.5 * (P_roe + P_roe.transpose());
   counters_[target] = {};
   bod_status_[target] = {};
+  recent_nis_count_[static_cast<std::size_t>(target)] = 0;
+}
+
+void SodFilter::inflate_target(int target, double factor) {
+  if (target < 0 || target >= layout_.n_targets)
+    throw std::invalid_argument("SodFilter::inflate_target: target index out of range");
+  if (!std::isfinite(factor) || factor < 1.0)
+    throw std::invalid_argument("SodFilter::inflate_target: factor must be finite and >= 1");
+  VectorXd scale = VectorXd::Ones(layout_.size());
+  scale.segment<6>(layout_.target_offset(target)).setConstant(std::sqrt(factor));
+  if (layout_.ballistic) scale[layout_.ballistic_index(target)] = std::sqrt(factor);
+  P_ = scale.asDiagonal() * P_ * scale.asDiagonal();
+  recent_nis_count_[static_cast<std::size_t>(target)] = 0;
+  counters_[target].consecutive_large_residuals = 0;
+}
+
+void SodFilter::inflate_target_maneuver(int target, double sigma_dv_mps, double since_s) {
+  if (target < 0 || target >= layout_.n_targets)
+    throw std::invalid_argument("SodFilter::inflate_target_maneuver: target index out of range");
+  if (!is_finite_positive(sigma_dv_mps) || !std::isfinite(since_s) || since_s < 0.0)
+    throw std::invalid_argument("SodFilter::inflate_target_maneuver: sigma_dv_mps must be > 0, since_s >= 0");
+  const double a = x_[StateLayout::kA], u = x_[StateLayout::kU];
+  const double n = std::sqrt(gm_m3ps2_ / (a * a * a));
+  // a * dROE = G dv_RTN (near-circular), rows [da, dlambda, dex, dey, dix, diy].
+  Eigen::Matrix<double, 6, 3> G = Eigen::Matrix<double, 6, 3>::Zero();
+  G(0, 1) = 2.0 / n;
+  G(1, 0) = -2.0 / n;
+  G(2, 0) = std::sin(u) / n;
+  G(2, 1) = 2.0 * std::cos(u) / n;
+  G(3, 0) = -std::cos(u) / n;
+  G(3, 1) = 2.0 * std::sin(u) / n;
+  G(4, 2) = std::cos(u) / n;
+  G(5, 2) = std::sin(u) / n;
+  // Drift of a*dlambda since the burn: -1.5 n (a da) tau = -3 dv_T tau, with
+  // tau uniform in [0, since]: the mean in G, the spread as extra variance.
+  const double tau_mean = 0.5 * since_s, tau_var = since_s * since_s / 12.0;
+  G(1, 1) = -3.0 * tau_mean;
+  Mat6 Q = sigma_dv_mps * sigma_dv_mps * G * G.transpose();
+  Q(1, 1) += 9.0 * sigma_dv_mps * sigma_dv_mps * tau_var;
+  const int off = layout_.target_offset(target);
+  P_.block<6, 6>(off, off) += Q / (a * a);
+  P_ = 0.5 * (P_ + P_.transpose());
+  recent_nis_count_[static_cast<std::size_t>(target)] = 0;
+  counters_[target].consecutive_large_residuals = 0;
+}
+
+double SodFilter::recent_nis_span_s(int target) const {
+  const int w = options_.health.nis_window;
+  if (!std::isfinite(recent_mean_nis(target))) return kNaN;
+  const auto& ts = recent_nis_t_[static_cast<std::size_t>(target)];
+  const int c = recent_nis_count_[static_cast<std::size_t>(target)];
+  const TimeTT oldest = ts[static_cast<std::size_t>(c % w)];
+  return astro::seconds_between(oldest, t_);
+}
+
+double SodFilter::recent_mean_nis(int target) const {
+  const int w = options_.health.nis_window;
+  if (target < 0 || target >= layout_.n_targets || w <= 0 || recent_nis_count_[static_cast<std::size_t>(target)] < w)
+    return kNaN;
+  const auto& ring = recent_nis_[static_cast<std::size_t>(target)];
+  double sum = 0.0;
+  for (double v : ring) sum += v;
+  return sum / w;
 }
 
 bool SodFilter::reinitialize_target_from_bod(int target) {

@@ -85,6 +85,10 @@ struct CameraConfig {
   // Target photometry: nominal, or "flight-like" (targets beyond ~100 km
   // often lost in noise, as in the paper; docs/imaging_targets.md).
   bool flight_like = false;
+  // The ground's time-tag correction, added onboard to every image time tag
+  // (the paper's in-flight update: "user-specified time offsets for incoming
+  // star tracker data"; -0.4 s on 05/08/24). 0: none.
+  double time_tag_correction_s = 0.0;
 };
 
 // Ground a-priori knowledge uplinked to an observer (navigation mode 1):
@@ -160,6 +164,18 @@ struct SodTuning {
   double underweighting = 0.5;        // beta of measurement underweighting (docs/sod.md)
   bool adaptive_process_noise = true;  // paper: adaptive process noise estimation
   double process_noise_scale = 1.0;   // times the nominal target process noise
+  // Health check 5 (docs/sod.md): mean NIS of a target's last nis_window
+  // bearings against the chi2(2 W)/W quantile at 1 - nis_false_alarm.
+  int nis_window = 20;                // 0: off
+  double nis_false_alarm = 1e-4;
+  // Auxiliary states (paper, "System State"): the camera's time-tag offset
+  // (and drift), and each target's differential ballistic coefficient.
+  enum class TimeTagEstimation { kNone, kOffset, kOffsetAndDrift };
+  TimeTagEstimation time_tag = TimeTagEstimation::kNone;
+  double time_tag_sigma_s = 1.0;          // initial 1-sigma of the offset
+  double time_tag_drift_sigma_ppm = 100.0;  // initial 1-sigma of the drift
+  bool estimate_ballistic = false;
+  double ballistic_sigma_fraction = 0.5;  // initial 1-sigma of dB over the nominal Cd A/m
 };
 struct ArtmsTuning {
   ImpTuning imp;

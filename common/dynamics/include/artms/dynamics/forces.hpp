@@ -75,6 +75,11 @@ class ForceModel {
   [[nodiscard]] Vec3 perturbation_eci(astro::TimeTT t, const StateVector& x_eci,
                                       const SpacecraftProperties& sc) const;
 
+  // Drag acceleration of a spacecraft with a ballistic coefficient Cd A/m of
+  // 1 m^2/kg (ECI); zero without drag. Scaled by a ballistic coefficient, the
+  // drag of any spacecraft: what SOD's differential ballistic state needs.
+  [[nodiscard]] Vec3 unit_ballistic_drag_eci(astro::TimeTT t, const StateVector& x_eci) const;
+
   [[nodiscard]] const ForceModelOptions& options() const { return options_; }
   [[nodiscard]] double gm_m3ps2() const { return gravity_.gm_m3ps2(); }
 

@@ -92,6 +92,13 @@ struct NavigatorOptions {
   // another target's is left out: the two spots blend into one centroid
   // (5 PSF sigmas of the NST; with the uplinked fx). 0 disables.
   double blend_separation_px = 6.0;
+  // A target that had bearings and has had none for lost_after_steps filter
+  // steps, while an unbound IMP track is unambiguously nearest its prediction
+  // (mean d2 below lost_max_d2), is suspect: its covariance is inflated so
+  // that the track can be bound again (a target's unknown manoeuvre: the
+  // track SAMUS starts after the jump; issue 17).
+  int lost_after_steps = 10;
+  double lost_max_d2 = 1e7;
 };
 
 // SOD's options from the uplinked telecommands, as the navigator builds its
@@ -326,11 +333,15 @@ class Navigator {
   std::vector<std::optional<BodEstimate>> last_bod_;
   std::map<int, std::deque<TrackBearing>> history_;
   std::optional<astro::TimeTT> next_bod_;
+  std::optional<astro::TimeTT> next_aux_report_;
+  // Hourly event with the auxiliary states' estimates (time tag, drag).
+  void report_aux();
   std::size_t bod_attempts_ = 0, bod_usable_ = 0;
   std::vector<bus::BodAttempt> bod_records_;
   // Per target: its bound track's bearings were refused by the gate and none
   // has fitted since (telemetry health 1, "suspect").
   std::vector<bool> suspect_;
+  std::vector<astro::TimeTT> last_fit_t_;  // filter epoch of each target's latest accepted bearing
   void set_suspect(int k, bool on, const std::string& why);
   void run_bod(astro::TimeTT t_est);
   // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating

@@ -71,6 +71,13 @@ struct HealthOptions {
   double max_a_m = 50000e3;
   double max_e = 0.1;
   double max_a_roe_m = 2000e3;
+  // (5) consistency (not in the paper; Bar-Shalom et al. 2001, section 5.4):
+  // the mean NIS of a target's last nis_window bearings (gated ones included)
+  // above nis_max_mean, the chi2(2 W)/W quantile the navigator sets from its
+  // false-alarm probability. The filter is then over-confident or wrong about
+  // that target (a manoeuvre, a model error, a wrong time tag). 0 disables.
+  int nis_window = 20;
+  double nis_max_mean = 4.0;
 };
 
 struct SodOptions {
@@ -87,7 +94,13 @@ struct SodOptions {
   // dimensionless state with the observer's a at initialisation.
   Vec6 q_observer = (Vec6() << 4e-5, 2e-18, 2e-18, 2e-18, 2e-18, 1e-16).finished();
   Vec6 q_target_a_roe_m2ps = (Vec6() << 2e-6, 2e-4, 2e-6, 2e-6, 2e-6, 2e-6).finished();
-  double q_aux = 0.0;  // per auxiliary state, state units^2 / s
+  double q_aux = 0.0;  // per generic auxiliary state, state units^2 / s
+  // Random walks of the named auxiliary states (StateLayout): camera
+  // time-tag offset (s^2/s) and drift ((s/s)^2/s), differential ballistic
+  // coefficient ((m^2/kg)^2/s).
+  double q_time_tag_offset_s2ps = 0.0;
+  double q_time_tag_drift_ps = 0.0;
+  double q_ballistic_m4pkg2ps = 0.0;
   AdaptiveNoiseOptions adaptive;
   // Measurements whose innovation Mahalanobis distance sqrt(nu^T S^-1 nu)
   // exceeds these are rejected (counted, state untouched). kInf disables.
@@ -104,6 +117,12 @@ struct SodOptions {
   // Throws std::invalid_argument naming the offending field.
   void validate() const;
 };
+
+// Quantile of the chi-square distribution with `dof` degrees of freedom at
+// probability p (Wilson & Hilferty 1931 cube-root normal approximation; within
+// 0.5 % of the exact quantile for dof >= 10 and p in [0.9, 1 - 1e-6]).
+// Throws std::invalid_argument for dof < 1 or p outside (0, 1).
+double chi2_quantile(int dof, double p);
 
 // Bearing angles of paper eq. (2) to target `target`, measured in the camera
 // frame V whose attitude R_v_from_eci comes with the measurement.
@@ -174,6 +193,7 @@ enum class HealthCondition {
   kNoMeasurementUpdate,  // (2)
   kLargeResiduals,       // (3)
   kOutOfRange,           // (4), also non-finite or non-positive-definite
+  kInconsistent,         // (5) normalised innovations too large
 };
 std::string_view to_string(HealthCondition c);
 
@@ -248,6 +268,25 @@ class SodFilter {
   // All four checks on the current estimate.
   [[nodiscard]] HealthReport health() const;
 
+  // Covariance inflation of one target (rows and columns of its ROE block and
+  // of its ballistic state scaled by sqrt(factor), correlations kept): the
+  // answer to check (5), a fading memory of the bearings that no longer fit.
+  // Clears the target's NIS window. Throws std::invalid_argument for a bad
+  // target or a factor that is not finite and >= 1.
+  void inflate_target(int target, double factor);
+  // Additive inflation for an unknown impulsive manoeuvre of the target, of
+  // 1-sigma sigma_dv_mps per RTN axis, made up to since_s seconds ago: the
+  // covariance of the ROE jump through the near-circular control matrix
+  // (D'Amico 2010, eq. 2.38) at the observer's current u, plus the along-track
+  // drift -3 dv_T tau it caused since (tau uniform in [0, since_s]). Clears
+  // the target's NIS window. Throws std::invalid_argument for a bad target or
+  // a sigma that is not finite and positive.
+  void inflate_target_maneuver(int target, double sigma_dv_mps, double since_s);
+  // Time span of the target's NIS window (s; NaN until full).
+  [[nodiscard]] double recent_nis_span_s(int target) const;
+  // Mean NIS of the target's last health.nis_window bearings (NaN until full).
+  [[nodiscard]] double recent_mean_nis(int target) const;
+
   // Re-initialisation: replaces a target's block with the given mean (ROE,
   // dimensionless) and covariance, clears its cross-covariances and counters.
   // Throws std::invalid_argument if P_roe is not symmetric positive definite.
@@ -293,6 +332,9 @@ class SodFilter {
   // Time update to a measurement epoch; false with s.why set on failure.
   bool advance_to(TimeTT t, UpdateSummary& s);
   void adapt_process_noise();
+  // Dynamics of the named auxiliary states over dt on propagated sigma points
+  // Y (columns of X before the step): time-tag drift, differential drag.
+  void apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) const;
 
   dynamics::GveRk4Propagator observer_prop_;
   dynamics::GveRk4Propagator target_prop_;
@@ -311,7 +353,11 @@ class SodFilter {
   double last_dt_s_ = 0.0;
   bool initialized_ = false;
 
+  const dynamics::ForceModel& forces_;
   std::vector<TargetCounters> counters_;
+  std::vector<std::vector<double>> recent_nis_;  // ring buffers, health.nis_window each
+  std::vector<std::vector<TimeTT>> recent_nis_t_;
+  std::vector<int> recent_nis_count_;
   std::vector<HealthStatus> bod_status_;
   std::vector<std::optional<BodEstimate>> last_bod_;
   int steps_without_update_ = 0;

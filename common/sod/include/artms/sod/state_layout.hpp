@@ -6,8 +6,11 @@
 // droe_k:  target k's osculating ROE (paper eq. 4), DIMENSIONLESS, in the
 //          order of astro::Roe: [da, dlambda, dex, dey, dix, diy]. Multiply by
 //          the observer's a for the "a*droe" meters of docs/conventions.md.
-// aux:     auxiliary states (clock offsets, biases, ...) appended last; the
-//          filter holds them constant in the time update (random walk).
+// aux:     auxiliary states appended last (paper, "System State"), in this
+//          order: n_aux generic states (constant, random walk); the observer's
+//          camera time-tag offset (s) and, with n_time_tag = 2, its drift
+//          (s/s); with `ballistic`, one differential ballistic coefficient
+//          per target (m^2/kg, the target's Cd A/m minus the onboard nominal).
 // The observer block comes first so that the lower-triangular Cholesky factor
 // leaves the observer untouched by every sigma point built from a target
 // column (Stacey & D'Amico 2018): see SodFilter::time_update.
@@ -20,6 +23,8 @@ namespace artms::sod {
 struct StateLayout {
   int n_targets = 0;
   int n_aux = 0;
+  int n_time_tag = 0;      // 0: none, 1: offset, 2: offset and drift
+  bool ballistic = false;  // one differential ballistic coefficient per target
 
   static constexpr int kBlock = 6;
   // Observer element indices inside its block (QnsElements::as_vector order).
@@ -33,7 +38,14 @@ struct StateLayout {
     return kBlock * (1 + k);
   }
   [[nodiscard]] constexpr int aux_offset() const { return kBlock * (1 + n_targets); }
-  [[nodiscard]] constexpr int size() const { return aux_offset() + n_aux; }
+  [[nodiscard]] constexpr int time_tag_offset() const { return aux_offset() + n_aux; }
+  [[nodiscard]] constexpr int time_tag_drift() const { return time_tag_offset() + 1; }
+  [[nodiscard]] constexpr int ballistic_offset() const { return time_tag_offset() + n_time_tag; }
+  [[nodiscard]] constexpr int ballistic_index(int k) const {
+    assert(ballistic && k >= 0 && k < n_targets);
+    return ballistic_offset() + k;
+  }
+  [[nodiscard]] constexpr int size() const { return ballistic_offset() + (ballistic ? n_targets : 0); }
   // True for the components that are angles whose differences are wrapped to
   // (-pi, pi]: RAAN and u of the observer, dlambda of every target.
   [[nodiscard]] constexpr bool is_angle(int index) const {
