@@ -914,7 +914,7 @@ class Parser {
     for (const Val& item : *list) {
       Map m(ctx_, item,
             {"id", "kepler", "qns", "relative", "mass_kg", "drag_area_m2", "cd", "srp_area_m2",
-             "cr", "onboard"});
+             "cr", "onboard", "drag_area_variation"});
       if (!m.ok()) continue;
       SpacecraftConfig sc;
       ScInfo info;
@@ -964,6 +964,8 @@ class Parser {
         }
       }
       parse_properties(m, sc.properties);
+      number_field(ctx_, m, "drag_area_variation", sc.properties.drag_area_variation,
+                   Range{0.0, 1.0, false, true, "A = drag_area_m2 (1 + f cos 2u)"});
       if (const Val* ov = m.find("onboard")) {
         Map om(ctx_, *ov, {"mass_kg", "drag_area_m2", "cd", "srp_area_m2", "cr"});
         if (om.ok()) parse_properties(om, sc.onboard_properties);

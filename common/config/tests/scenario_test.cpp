@@ -436,6 +436,12 @@ TEST(ScenarioLoad, OnboardSpacecraftPropertiesAreUplinkedForEveryMember) {
   EXPECT_DOUBLE_EQ(u.onboard_properties("SV2").mass_kg, 10.5);
   EXPECT_DOUBLE_EQ(u.onboard_properties("SV4").mass_kg, dynamics::SpacecraftProperties{}.mass_kg);
   EXPECT_EQ(u.onboard_properties_by_id.size(), 2u);
+  // A truth-only attitude-like drag-area variation.
+  std::string var = kValid;
+  var.replace(var.find(sv2), sv2.size(), sv2 + "    drag_area_variation: 0.3\n");
+  EXPECT_DOUBLE_EQ(load_scenario(write_file("sc_var.yaml", var)).spacecraft_by_id("SV2").properties.drag_area_variation, 0.3);
+  var.replace(var.find("0.3\n"), 4, "1.2\n");
+  expect_one("sc_var_bad.yaml", var, 9, "spacecraft[1].drag_area_variation", "0 <= drag_area_variation < 1");
   // Bad values are named.
   std::string bad = kValid;
   bad.replace(bad.find(sv2), sv2.size(), sv2 + "    onboard: {cd: -1, area: 2}\n");

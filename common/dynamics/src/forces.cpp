@@ -26,7 +26,26 @@ void SpacecraftProperties::validate() const {
   positive(cd, "cd");
   positive(srp_area_m2, "srp_area_m2");
   positive(cr, "cr");
+  if (!(drag_area_variation >= 0.0 && drag_area_variation < 1.0)) {
+    throw std::invalid_argument("spacecraft property drag_area_variation must lie in [0, 1), got " +
+                                std::to_string(drag_area_variation));
+  }
 }
+
+namespace {
+
+// cos 2u of the argument of latitude u of (r, v): c = n.r, s = (n x r).h with
+// n the ascending node and h the orbit normal (units), cos 2u = (c^2 - s^2)/(c^2 + s^2).
+double cos_twice_argument_of_latitude(const Vec3& r, const Vec3& v) {
+  const Vec3 h = r.cross(v).normalized();
+  Vec3 n(-h.y(), h.x(), 0.0);
+  const double nn = n.norm();
+  n = nn > 1e-12 ? Vec3(n / nn) : Vec3::UnitX();  // equatorial: u from the x axis
+  const double c = n.dot(r), s = n.cross(r).dot(h);
+  return (c * c - s * s) / (c * c + s * s);
+}
+
+}  // namespace
 
 ForceModelOptions ForceModelOptions::flight_like_truth() {
   ForceModelOptions o;
@@ -178,7 +197,11 @@ Vec3 ForceModel::evaluate(astro::TimeTT t, const StateVector& x, const Spacecraf
   if (options_.moon) a += third_body_acceleration_mps2(x.r_m, moon_position_eci_m(t), kGmMoon_m3ps2);
   if (options_.drag) {
     const double rho = density(t, x.r_m, r_ecef, r_sun);
-    a += drag_acceleration_mps2(x.r_m, x.v_mps, rho, sc.cd, sc.drag_area_m2 / sc.mass_kg);
+    double area_m2 = sc.drag_area_m2;
+    if (sc.drag_area_variation != 0.0) {
+      area_m2 *= 1.0 + sc.drag_area_variation * cos_twice_argument_of_latitude(x.r_m, x.v_mps);
+    }
+    a += drag_acceleration_mps2(x.r_m, x.v_mps, rho, sc.cd, area_m2 / sc.mass_kg);
   }
   if (options_.srp) {
     a += srp_acceleration_mps2(x.r_m, r_sun, sc.cr, sc.srp_area_m2 / sc.mass_kg, options_.shadow);

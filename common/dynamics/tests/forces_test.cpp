@@ -120,6 +120,25 @@ TEST(Forces, ManeuverIsInRtn) {
   EXPECT_EQ(y.r_m, x.r_m);
 }
 
+TEST(Forces, DragAreaVariesTwicePerOrbit) {
+  const ForceModel f = ForceModel::load(ForceModelOptions::parse("drag"), ARTMS_DATA_DIR);
+  const astro::TimeTT t = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
+  SpacecraftProperties fixed, varying;
+  varying.drag_area_variation = 0.5;
+  // Inclined circular orbit at 550 km: u = 0 at the node, 90 deg at the top.
+  const double i = 97.6 * astro::kDegToRad, r = 6928e3, v = std::sqrt(astro::kGmEarth_m3ps2 / r);
+  for (double u_deg : {0.0, 45.0, 90.0, 180.0}) {
+    const double u = u_deg * astro::kDegToRad;
+    const Vec3 e_r(std::cos(u), std::sin(u) * std::cos(i), std::sin(u) * std::sin(i));
+    const Vec3 e_t(-std::sin(u), std::cos(u) * std::cos(i), std::cos(u) * std::sin(i));
+    const astro::StateVector x{r * e_r, v * e_t};
+    const double ratio = f.perturbation_eci(t, x, varying).norm() / f.perturbation_eci(t, x, fixed).norm();
+    EXPECT_NEAR(ratio, 1.0 + 0.5 * std::cos(2.0 * u), 1e-9) << u_deg;
+  }
+  varying.drag_area_variation = 1.0;
+  EXPECT_THROW(varying.validate(), std::invalid_argument);
+}
+
 TEST(Forces, ValidatesSpacecraftProperties) {
   SpacecraftProperties sc;
   EXPECT_NO_THROW(sc.validate());

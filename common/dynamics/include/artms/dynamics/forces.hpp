@@ -31,6 +31,10 @@ struct SpacecraftProperties {
   double cd = 2.2;
   double srp_area_m2 = 0.068;
   double cr = 1.3;
+  // Attitude-like variation of the drag area over the orbit (truth side):
+  // A = drag_area_m2 (1 + f cos 2u), u the argument of latitude (largest at
+  // the nodes, smallest over the poles, twice per orbit); 0 <= f < 1.
+  double drag_area_variation = 0.0;
   // Throws std::invalid_argument naming the bad field.
   void validate() const;
 };
