@@ -68,7 +68,7 @@ int run(int argc, char** argv) {
   app.add_option("--duration", duration, "span to propagate (90s, 30m, 6h, 1d)")->capture_default_str();
   app.add_option("--step", step, "output step (60s)")->capture_default_str();
   app.add_option("--force", force,
-                 "force model: two-body | j2 | comma list of gravN[_M],drag,sun,moon,srp")
+                 "force model: two-body | j2 | flight-like | comma list of gravN[_M],drag,drag-jacchia,sun,moon,srp")
       ->capture_default_str();
   app.add_option("--oem", oem_path, "also write a CCSDS OEM 2.0 (KVN) file");
   app.add_option("--out", out_path, "CSV output file")->required();

@@ -178,7 +178,10 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
   // force models side by side.
   const auto fm = [](const dynamics::ForceModelOptions& f) {
     return nlohmann::json{{"gravity_degree", f.gravity_degree}, {"gravity_order", f.gravity_order}, {"drag", f.drag},
-                          {"sun", f.sun}, {"moon", f.moon}, {"srp", f.srp}};
+                          {"atmosphere", f.atmosphere_model == dynamics::AtmosphereModel::kHarrisPriester
+                                             ? "harris-priester"
+                                             : "jacchia-scaled-harris-priester"},
+                          {"sun", f.sun}, {"moon", f.moon}, {"srp", f.srp}, {"description", f.describe()}};
   };
   j["force_models"] = {{"truth", fm(sc.force_model)}, {"onboard", fm(sc.onboard_force_model)},
                        {"agree", sc.force_models_agree()}};

@@ -644,6 +644,11 @@ class Parser {
     }
     if (const Val* v = top.find("seed")) parse_seed(*v);
     if (const Val* v = top.find("force_model")) parse_force_model(*v);
+    // Space weather days count from the epoch; its variation draws from the seed.
+    for (auto* f : {&s_.force_model, &s_.onboard_force_model}) {
+      if (epoch_) f->space_weather.start = *epoch_;
+      f->space_weather.seed = s_.seed;
+    }
 
     if (const Val* v = top.require("spacecraft", "a list of spacecraft")) parse_spacecraft(*v);
     if (const Val* v = top.require("observers", "a list of observers")) parse_observers(*v);
@@ -686,27 +691,46 @@ class Parser {
   }
 
   void parse_force_model(const Val& v) {
-    // Two sides, or one block for both.
+    // Two sides, or one block for both. A split block's truth side starts
+    // from the flight-like world, its onboard side from the paper's model.
     if (v.node.IsMap() && (v.node["truth"] || v.node["onboard"])) {
       Map m(ctx_, v, {"truth", "onboard"});
       if (!m.ok()) return;
-      if (const Val* t = m.find("truth")) parse_force_block(*t, s_.force_model);
-      if (const Val* o = m.find("onboard")) parse_force_block(*o, s_.onboard_force_model);
+      s_.force_model = dynamics::ForceModelOptions::flight_like_truth();
+      if (const Val* t = m.find("truth")) parse_force_side(*t, s_.force_model);
+      if (const Val* o = m.find("onboard")) parse_force_side(*o, s_.onboard_force_model);
       return;
     }
     parse_force_block(v, s_.force_model);
     s_.onboard_force_model = s_.force_model;
   }
 
+  // One side of a split block: a mapping of force keys over the side's
+  // defaults, or a named model (flight-like, paper).
+  void parse_force_side(const Val& v, dynamics::ForceModelOptions& f) {
+    if (v.node.IsScalar()) {
+      const std::string& name = v.node.Scalar();
+      if (name == "flight-like") {
+        f = dynamics::ForceModelOptions::flight_like_truth();
+      } else if (name == "paper") {
+        f = dynamics::ForceModelOptions{};
+      } else {
+        ctx_.error(v, "expected a mapping of force model keys, flight-like or paper, got " + describe(v.node));
+      }
+      return;
+    }
+    parse_force_block(v, f);
+  }
+
   void parse_force_block(const Val& v, dynamics::ForceModelOptions& f) {
     Map m(ctx_, v,
           {"gravity_degree", "gravity_order", "drag", "sun", "moon", "srp", "shadow",
-           "harris_priester_exponent", "harris_priester_lag_deg"});
+           "harris_priester_exponent", "harris_priester_lag_deg", "atmosphere", "space_weather"});
     if (!m.ok()) return;
     const bool degree_ok = int_field(ctx_, m, "gravity_degree", f.gravity_degree, 0,
                                      kMaxGravityDegree, "the shipped GGM01S field");
     // A degree alone means a full N x N field.
-    if (degree_ok && !m.has("gravity_order")) {
+    if (degree_ok && m.has("gravity_degree") && !m.has("gravity_order")) {
       f.gravity_order = f.gravity_degree;
     }
     if (int_field(ctx_, m, "gravity_order", f.gravity_order, 0, kMaxGravityDegree) && degree_ok &&
@@ -736,6 +760,46 @@ class Parser {
     double lag_deg = f.atmosphere.lag_angle_rad * astro::kRadToDeg;
     if (number_field(ctx_, m, "harris_priester_lag_deg", lag_deg, closed(0.0, 90.0), "deg")) {
       f.atmosphere.lag_angle_rad = lag_deg * astro::kDegToRad;
+    }
+    if (const Val* av = m.find("atmosphere")) {
+      const auto t = read_string(ctx_, *av, "harris-priester or jacchia-scaled-harris-priester");
+      if (t && *t == "harris-priester") {
+        f.atmosphere_model = dynamics::AtmosphereModel::kHarrisPriester;
+      } else if (t && *t == "jacchia-scaled-harris-priester") {
+        f.atmosphere_model = dynamics::AtmosphereModel::kJacchiaScaledHarrisPriester;
+      } else if (t) {
+        ctx_.error(*av, "expected harris-priester or jacchia-scaled-harris-priester, got " + describe(av->node));
+      }
+    }
+    if (const Val* wv = m.find("space_weather")) {
+      if (f.atmosphere_model != dynamics::AtmosphereModel::kJacchiaScaledHarrisPriester) {
+        ctx_.error(*wv, "space_weather drives the jacchia-scaled-harris-priester atmosphere only: set "
+                        "atmosphere: jacchia-scaled-harris-priester (Harris-Priester has one mean activity)");
+      }
+      parse_space_weather(*wv, f.space_weather);
+    }
+  }
+
+  void parse_space_weather(const Val& v, dynamics::SpaceWeather& w) {
+    Map m(ctx_, v, {"f107_sfu", "f107_81day_sfu", "kp", "daily", "f107_daily_sigma_sfu", "kp_daily_sigma"});
+    if (!m.ok()) return;
+    number_field(ctx_, m, "f107_sfu", w.f107_sfu, positive(), "sfu");
+    number_field(ctx_, m, "f107_81day_sfu", w.f107_81day_sfu, positive(), "sfu");
+    number_field(ctx_, m, "kp", w.kp, closed(0.0, 9.0));
+    number_field(ctx_, m, "f107_daily_sigma_sfu", w.f107_daily_sigma_sfu, non_negative("0 = off"), "sfu");
+    number_field(ctx_, m, "kp_daily_sigma", w.kp_daily_sigma, non_negative("0 = off"));
+    if (const Val* dv = m.find("daily")) {
+      const auto list = items(ctx_, *dv, "days {f107_sfu, kp}");
+      if (!list) return;
+      w.daily.clear();
+      for (const Val& item : *list) {
+        Map dm(ctx_, item, {"f107_sfu", "kp"});
+        if (!dm.ok()) continue;
+        dynamics::SpaceWeather::Day day;
+        bool ok = number_field(ctx_, dm, "f107_sfu", day.f107_sfu, positive(), "sfu", true);
+        ok &= number_field(ctx_, dm, "kp", day.kp, closed(0.0, 9.0), {}, true);
+        if (ok) w.daily.push_back(day);
+      }
     }
   }
 
@@ -829,6 +893,16 @@ class Parser {
     return ctx_.count() == before;
   }
 
+  // Physical properties (truth at spacecraft[], the uplinked nominal values
+  // at spacecraft[].onboard).
+  void parse_properties(Map& m, dynamics::SpacecraftProperties& p) {
+    number_field(ctx_, m, "mass_kg", p.mass_kg, positive(), "kg");
+    number_field(ctx_, m, "drag_area_m2", p.drag_area_m2, positive(), "m^2");
+    number_field(ctx_, m, "cd", p.cd, positive());
+    number_field(ctx_, m, "srp_area_m2", p.srp_area_m2, positive(), "m^2");
+    number_field(ctx_, m, "cr", p.cr, positive());
+  }
+
   void parse_spacecraft(const Val& v) {
     const auto list = items(ctx_, v, "spacecraft");
     if (!list) return;
@@ -840,7 +914,7 @@ class Parser {
     for (const Val& item : *list) {
       Map m(ctx_, item,
             {"id", "kepler", "qns", "relative", "mass_kg", "drag_area_m2", "cd", "srp_area_m2",
-             "cr"});
+             "cr", "onboard", "drag_area_variation"});
       if (!m.ok()) continue;
       SpacecraftConfig sc;
       ScInfo info;
@@ -889,12 +963,13 @@ class Parser {
           info.orbit_ok = parse_relative(info.orbit, sc.orbit, info);
         }
       }
-      auto& p = sc.properties;
-      bool props_ok = number_field(ctx_, m, "mass_kg", p.mass_kg, positive(), "kg");
-      props_ok &= number_field(ctx_, m, "drag_area_m2", p.drag_area_m2, positive(), "m^2");
-      props_ok &= number_field(ctx_, m, "cd", p.cd, positive());
-      props_ok &= number_field(ctx_, m, "srp_area_m2", p.srp_area_m2, positive(), "m^2");
-      props_ok &= number_field(ctx_, m, "cr", p.cr, positive());
+      parse_properties(m, sc.properties);
+      number_field(ctx_, m, "drag_area_variation", sc.properties.drag_area_variation,
+                   Range{0.0, 1.0, false, true, "A = drag_area_m2 (1 + f cos 2u)"});
+      if (const Val* ov = m.find("onboard")) {
+        Map om(ctx_, *ov, {"mass_kg", "drag_area_m2", "cd", "srp_area_m2", "cr"});
+        if (om.ok()) parse_properties(om, sc.onboard_properties);
+      }
       if (!id) {
         all_orbits_ok_ = false;
         continue;
@@ -1499,10 +1574,17 @@ astro::QnsElements absolute_qns(const Scenario& s, const SpacecraftConfig& sc, s
 bool Scenario::force_models_agree() const {
   const auto& a = force_model;
   const auto& b = onboard_force_model;
+  const bool same_atmosphere =
+      a.atmosphere_model == b.atmosphere_model &&
+      (a.atmosphere_model == dynamics::AtmosphereModel::kHarrisPriester
+           ? a.atmosphere.cosine_exponent == b.atmosphere.cosine_exponent &&
+                 a.atmosphere.lag_angle_rad == b.atmosphere.lag_angle_rad
+           : a.space_weather == b.space_weather &&
+                 a.jacchia.reference_temperature_K == b.jacchia.reference_temperature_K &&
+                 a.jacchia.semiannual == b.jacchia.semiannual);
   return a.gravity_degree == b.gravity_degree && a.gravity_order == b.gravity_order && a.drag == b.drag &&
          a.sun == b.sun && a.moon == b.moon && a.srp == b.srp && a.shadow == b.shadow &&
-         a.atmosphere.cosine_exponent == b.atmosphere.cosine_exponent &&
-         a.atmosphere.lag_angle_rad == b.atmosphere.lag_angle_rad;
+         (!a.drag || same_atmosphere);
 }
 
 const SpacecraftConfig& Scenario::spacecraft_by_id(const std::string& id) const {

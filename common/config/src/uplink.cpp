@@ -9,6 +9,60 @@ namespace artms::config {
 
 using nlohmann::json;
 
+namespace {
+
+const char* atmosphere_name(dynamics::AtmosphereModel m) {
+  return m == dynamics::AtmosphereModel::kHarrisPriester ? "harris-priester" : "jacchia-scaled-harris-priester";
+}
+
+json properties_json(const dynamics::SpacecraftProperties& p) {
+  return {{"mass_kg", p.mass_kg}, {"drag_area_m2", p.drag_area_m2}, {"cd", p.cd},
+          {"srp_area_m2", p.srp_area_m2}, {"cr", p.cr}};
+}
+
+dynamics::SpacecraftProperties properties_from(const json& j) {
+  dynamics::SpacecraftProperties p;
+  p.mass_kg = j.at("mass_kg").get<double>();
+  p.drag_area_m2 = j.at("drag_area_m2").get<double>();
+  p.cd = j.at("cd").get<double>();
+  p.srp_area_m2 = j.at("srp_area_m2").get<double>();
+  p.cr = j.at("cr").get<double>();
+  return p;
+}
+
+json space_weather_json(const dynamics::SpaceWeather& w) {
+  json daily = json::array();
+  for (const auto& d : w.daily) daily.push_back({{"f107_sfu", d.f107_sfu}, {"kp", d.kp}});
+  return {{"f107_sfu", w.f107_sfu},
+          {"f107_81day_sfu", w.f107_81day_sfu},
+          {"kp", w.kp},
+          {"daily", daily},
+          {"start_tt_ns", w.start.ns_since_j2000},
+          {"f107_daily_sigma_sfu", w.f107_daily_sigma_sfu},
+          {"kp_daily_sigma", w.kp_daily_sigma},
+          {"seed", w.seed}};
+}
+
+dynamics::SpaceWeather space_weather_from(const json& j) {
+  dynamics::SpaceWeather w;
+  w.f107_sfu = j.at("f107_sfu").get<double>();
+  w.f107_81day_sfu = j.at("f107_81day_sfu").get<double>();
+  w.kp = j.at("kp").get<double>();
+  for (const auto& d : j.at("daily")) w.daily.push_back({d.at("f107_sfu").get<double>(), d.at("kp").get<double>()});
+  w.start = astro::TimeTT{j.at("start_tt_ns").get<std::int64_t>()};
+  w.f107_daily_sigma_sfu = j.at("f107_daily_sigma_sfu").get<double>();
+  w.kp_daily_sigma = j.at("kp_daily_sigma").get<double>();
+  w.seed = j.at("seed").get<std::uint64_t>();
+  return w;
+}
+
+}  // namespace
+
+dynamics::SpacecraftProperties ObserverUplink::onboard_properties(const std::string& id) const {
+  const auto it = onboard_properties_by_id.find(id);
+  return it == onboard_properties_by_id.end() ? dynamics::SpacecraftProperties{} : it->second;
+}
+
 ObserverUplink make_uplink(const Scenario& s, const std::string& spacecraft) {
   ObserverUplink u;
   const ObserverConfig* obs = nullptr;
@@ -29,7 +83,10 @@ ObserverUplink make_uplink(const Scenario& s, const std::string& spacecraft) {
   u.isl_latency_s = s.crosslink.latency_s;
   for (const auto& o : s.observers) u.swarm_max_cadence_s = std::max(u.swarm_max_cadence_s, o.camera.cadence_s);
   u.use_remote_gnss = s.crosslink.use_remote_gnss;
-  for (const auto& sc : s.spacecraft) u.swarm_ids.push_back(sc.id);
+  for (const auto& sc : s.spacecraft) {
+    u.swarm_ids.push_back(sc.id);
+    u.onboard_properties_by_id[sc.id] = sc.onboard_properties;
+  }
   return u;
 }
 
@@ -41,6 +98,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
     std::vector<double> roe(a.roe.data(), a.roe.data() + 6), P(a.P_roe.data(), a.P_roe.data() + 36);
     apriori.push_back({{"target", a.target}, {"roe", roe}, {"covariance_roe", P}});
   }
+  json onboard = json::object();
+  for (const auto& [id, p] : u.onboard_properties_by_id) onboard[id] = properties_json(p);
   json outages = json::array();
   for (const auto& w : o.gnss.outages) outages.push_back({w.start.ns_since_j2000, w.end.ns_since_j2000});
   const json j = {
@@ -53,7 +112,11 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
        {{"gravity_degree", f.gravity_degree}, {"gravity_order", f.gravity_order}, {"drag", f.drag},
         {"sun", f.sun}, {"moon", f.moon}, {"srp", f.srp},
         {"conical_shadow", f.shadow == dynamics::ShadowModel::kConical},
-        {"hp_exponent", f.atmosphere.cosine_exponent}, {"hp_lag_rad", f.atmosphere.lag_angle_rad}}},
+        {"hp_exponent", f.atmosphere.cosine_exponent}, {"hp_lag_rad", f.atmosphere.lag_angle_rad},
+        {"atmosphere", atmosphere_name(f.atmosphere_model)},
+        {"space_weather", space_weather_json(f.space_weather)},
+        {"jacchia_reference_temperature_K", f.jacchia.reference_temperature_K},
+        {"jacchia_semiannual", f.jacchia.semiannual}}},
       {"observer",
        {{"spacecraft", o.spacecraft},
         {"mode", o.mode},
@@ -116,6 +179,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
       {"star_catalog_file", u.star_catalog_file},
       {"apriori_age_days", u.apriori_age_days},
       {"apriori", apriori},
+      {"onboard_properties", onboard},
   };
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write uplink file " + path);
@@ -149,6 +213,17 @@ ObserverUplink read_uplink(const std::string& path) {
                                                              : dynamics::ShadowModel::kCylindrical;
     u.force_model.atmosphere.cosine_exponent = f.at("hp_exponent").get<double>();
     u.force_model.atmosphere.lag_angle_rad = f.at("hp_lag_rad").get<double>();
+    if (f.contains("atmosphere")) {  // older uplinks: Harris-Priester
+      const auto name = f.at("atmosphere").get<std::string>();
+      if (name == "jacchia-scaled-harris-priester") {
+        u.force_model.atmosphere_model = dynamics::AtmosphereModel::kJacchiaScaledHarrisPriester;
+      } else if (name != "harris-priester") {
+        throw std::runtime_error(path + ": force_model.atmosphere: unknown model '" + name + "'");
+      }
+      u.force_model.space_weather = space_weather_from(f.at("space_weather"));
+      u.force_model.jacchia.reference_temperature_K = f.at("jacchia_reference_temperature_K").get<double>();
+      u.force_model.jacchia.semiannual = f.at("jacchia_semiannual").get<bool>();
+    }
     const auto& o = j.at("observer");
     u.observer.spacecraft = o.at("spacecraft").get<std::string>();
     u.observer.mode = o.at("mode").get<int>();
@@ -250,6 +325,17 @@ ObserverUplink read_uplink(const std::string& path) {
           throw std::runtime_error(path + ": apriori of " + ta.target + ": non-finite value");
         }
         u.apriori.push_back(ta);
+      }
+    }
+    if (j.contains("onboard_properties")) {
+      for (const auto& item : j.at("onboard_properties").items()) {
+        const std::string& id = item.key();
+        u.onboard_properties_by_id[id] = properties_from(item.value());
+        try {
+          u.onboard_properties_by_id[id].validate();
+        } catch (const std::invalid_argument& e) {
+          throw std::runtime_error(path + ": onboard_properties." + id + ": " + e.what());
+        }
       }
     }
     return u;

@@ -330,6 +330,125 @@ TEST(ScenarioValidation, ABadFieldOfOneForceModelSideIsNamed) {
   EXPECT_EQ(diags[0].line, 13);
 }
 
+TEST(ScenarioLoad, SplitForceModelTruthDefaultsToTheFlightLikeWorld) {
+  const Scenario s = load_scenario(write_file("fm_split.yaml", kValid + "seed: 42\nforce_model:\n  onboard: {gravity_degree: 10}\n"));
+  dynamics::ForceModelOptions f = dynamics::ForceModelOptions::flight_like_truth();
+  EXPECT_EQ(s.force_model.gravity_degree, f.gravity_degree);
+  EXPECT_EQ(s.force_model.gravity_order, f.gravity_order);
+  EXPECT_TRUE(s.force_model.srp && s.force_model.drag && s.force_model.sun && s.force_model.moon);
+  EXPECT_EQ(s.force_model.atmosphere_model, dynamics::AtmosphereModel::kJacchiaScaledHarrisPriester);
+  EXPECT_EQ(s.force_model.describe().substr(0, 13), "gravity 20x20");
+  // Space weather counts days from the epoch and draws from the seed.
+  EXPECT_EQ(s.force_model.space_weather.start, s.epoch);
+  EXPECT_EQ(s.force_model.space_weather.seed, 42u);
+  EXPECT_DOUBLE_EQ(s.force_model.space_weather.f107_sfu, dynamics::SpaceWeather{}.f107_sfu);
+  // The onboard side keeps the paper's model.
+  EXPECT_EQ(s.onboard_force_model.atmosphere_model, dynamics::AtmosphereModel::kHarrisPriester);
+  EXPECT_FALSE(s.onboard_force_model.srp);
+  EXPECT_FALSE(s.force_models_agree());
+  // No block at all: the paper's model on both sides, as before.
+  const Scenario plain = load_scenario(write_file("fm_none.yaml", kValid));
+  EXPECT_TRUE(plain.force_models_agree());
+  EXPECT_EQ(plain.force_model.atmosphere_model, dynamics::AtmosphereModel::kHarrisPriester);
+  EXPECT_EQ(plain.force_model.gravity_degree, 10);
+}
+
+TEST(ScenarioLoad, ForceModelSidesByName) {
+  const Scenario s = load_scenario(write_file("fm_named.yaml", kValid + "force_model: {truth: flight-like, onboard: paper}\n"));
+  EXPECT_EQ(s.force_model.describe(), dynamics::ForceModelOptions::flight_like_truth().describe());
+  EXPECT_EQ(s.onboard_force_model.describe(), dynamics::ForceModelOptions{}.describe());
+  // The truth side made equal to the paper's model, key by key: they agree.
+  const Scenario same = load_scenario(write_file(
+      "fm_same.yaml", kValid + "force_model:\n  truth: {gravity_degree: 10, srp: false, atmosphere: harris-priester}\n"
+                               "  onboard: paper\n"));
+  EXPECT_TRUE(same.force_models_agree()) << same.force_model.describe();
+  const Scenario both = load_scenario(write_file("fm_both.yaml", kValid + "force_model: {truth: paper, onboard: paper}\n"));
+  EXPECT_TRUE(both.force_models_agree());
+  expect_one("fm_name_bad.yaml", kValid + "force_model: {truth: flightlike}\n", 12, "force_model.truth",
+             "flight-like or paper");
+}
+
+TEST(ScenarioLoad, SpaceWeatherAndAtmosphereKeys) {
+  const std::string text = kValid + R"(force_model:
+  truth:
+    space_weather:
+      f107_sfu: 210
+      f107_81day_sfu: 180
+      kp: 5.3
+      f107_daily_sigma_sfu: 15
+      kp_daily_sigma: 0.7
+      daily: [{f107_sfu: 230, kp: 8}, {f107_sfu: 200, kp: 6}]
+  onboard: {gravity_degree: 10}
+)";
+  const Scenario s = load_scenario(write_file("sw.yaml", text));
+  const dynamics::SpaceWeather& w = s.force_model.space_weather;
+  EXPECT_DOUBLE_EQ(w.f107_sfu, 210.0);
+  EXPECT_DOUBLE_EQ(w.f107_81day_sfu, 180.0);
+  EXPECT_DOUBLE_EQ(w.kp, 5.3);
+  EXPECT_DOUBLE_EQ(w.f107_daily_sigma_sfu, 15.0);
+  EXPECT_DOUBLE_EQ(w.kp_daily_sigma, 0.7);
+  ASSERT_EQ(w.daily.size(), 2u);
+  EXPECT_DOUBLE_EQ(w.daily[1].kp, 6.0);
+  EXPECT_DOUBLE_EQ(w.at(s.epoch.plus_seconds(90000.0)).f107_sfu, 200.0);
+  EXPECT_NE(s.force_model.describe().find("2 daily values"), std::string::npos) << s.force_model.describe();
+  // One block for both sides may name the variable atmosphere too.
+  const Scenario one = load_scenario(write_file(
+      "sw_one.yaml", kValid + "force_model: {atmosphere: jacchia-scaled-harris-priester, space_weather: {kp: 2}}\n"));
+  EXPECT_TRUE(one.force_models_agree());
+  EXPECT_EQ(one.onboard_force_model.atmosphere_model, dynamics::AtmosphereModel::kJacchiaScaledHarrisPriester);
+  EXPECT_DOUBLE_EQ(one.onboard_force_model.space_weather.kp, 2.0);
+}
+
+TEST(ScenarioValidation, BadSpaceWeatherAndAtmosphereValuesAreNamed) {
+  const std::string head = kValid + "force_model:\n  truth:\n    space_weather:\n";
+  expect_one("sw_kp.yaml", head + "      kp: 12\n", 15, "force_model.truth.space_weather.kp", "0 <= kp <= 9");
+  expect_one("sw_flux.yaml", head + "      f107_sfu: -5\n", 15, "force_model.truth.space_weather.f107_sfu",
+             "f107_sfu > 0");
+  expect_one("sw_nan.yaml", head + "      f107_81day_sfu: .nan\n", 15, "force_model.truth.space_weather.f107_81day_sfu",
+             "finite");
+  expect_one("sw_sigma.yaml", head + "      kp_daily_sigma: -1\n", 15, "force_model.truth.space_weather.kp_daily_sigma",
+             ">= 0");
+  expect_one("sw_daily.yaml", head + "      daily:\n        - {f107_sfu: 150, kp: 2}\n        - {f107_sfu: 0, kp: 2}\n", 17,
+             "force_model.truth.space_weather.daily[1].f107_sfu", "f107_sfu > 0");
+  expect_one("sw_daily_kp.yaml", head + "      daily: [{f107_sfu: 150}]\n", 15,
+             "force_model.truth.space_weather.daily[0].kp", "missing required field");
+  expect_one("sw_key.yaml", head + "      f107_sfx: 150\n", 15, "force_model.truth.space_weather.f107_sfx", "did you mean");
+  expect_one("atm_bad.yaml", kValid + "force_model: {truth: {atmosphere: msis}}\n", 12, "force_model.truth.atmosphere",
+             "harris-priester or jacchia-scaled-harris-priester");
+  // Space weather for an atmosphere that does not use it.
+  expect_one("sw_hp.yaml", kValid + "force_model: {space_weather: {kp: 2}}\n", 12, "force_model.space_weather",
+             "atmosphere: jacchia-scaled-harris-priester");
+}
+
+TEST(ScenarioLoad, OnboardSpacecraftPropertiesAreUplinkedForEveryMember) {
+  std::string text = kValid;
+  const std::string sv2 = "    relative: {chief: SV4, roe_m: [23, -52266, -471, -523, 35, 1811]}\n";
+  text.replace(text.find(sv2), sv2.size(),
+               sv2 + "    mass_kg: 11.5\n    drag_area_m2: 0.08\n    onboard: {mass_kg: 10.5, cd: 2.4}\n");
+  const Scenario s = load_scenario(write_file("sc_onboard.yaml", text));
+  const auto& sv2c = s.spacecraft_by_id("SV2");
+  EXPECT_DOUBLE_EQ(sv2c.properties.mass_kg, 11.5);  // truth
+  EXPECT_DOUBLE_EQ(sv2c.properties.drag_area_m2, 0.08);
+  EXPECT_DOUBLE_EQ(sv2c.onboard_properties.mass_kg, 10.5);  // what the ground uplinks
+  EXPECT_DOUBLE_EQ(sv2c.onboard_properties.cd, 2.4);
+  EXPECT_DOUBLE_EQ(sv2c.onboard_properties.drag_area_m2, dynamics::SpacecraftProperties{}.drag_area_m2);
+  const ObserverUplink u = make_uplink(s, "SV4");
+  EXPECT_DOUBLE_EQ(u.onboard_properties("SV2").mass_kg, 10.5);
+  EXPECT_DOUBLE_EQ(u.onboard_properties("SV4").mass_kg, dynamics::SpacecraftProperties{}.mass_kg);
+  EXPECT_EQ(u.onboard_properties_by_id.size(), 2u);
+  // A truth-only attitude-like drag-area variation.
+  std::string var = kValid;
+  var.replace(var.find(sv2), sv2.size(), sv2 + "    drag_area_variation: 0.3\n");
+  EXPECT_DOUBLE_EQ(load_scenario(write_file("sc_var.yaml", var)).spacecraft_by_id("SV2").properties.drag_area_variation, 0.3);
+  var.replace(var.find("0.3\n"), 4, "1.2\n");
+  expect_one("sc_var_bad.yaml", var, 9, "spacecraft[1].drag_area_variation", "0 <= drag_area_variation < 1");
+  // Bad values are named.
+  std::string bad = kValid;
+  bad.replace(bad.find(sv2), sv2.size(), sv2 + "    onboard: {cd: -1, area: 2}\n");
+  expect_one("sc_onboard_cd.yaml", bad, 9, "spacecraft[1].onboard.cd", "cd > 0");
+  expect_one("sc_onboard_key.yaml", bad, 9, "spacecraft[1].onboard.area", "unknown key");
+}
+
 TEST(ScenarioLoad, MeanRoeAreRelativeToTheChiefsMeanElements) {
   std::string text = kValid;
   const std::string key = "roe_m: [23, -52266, -471, -523, 35, 1811]}";

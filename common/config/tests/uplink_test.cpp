@@ -33,6 +33,26 @@ TEST(Uplink, RoundTripsAndCarriesNoOrbits) {
   EXPECT_THROW(make_uplink(s, "SV2"), std::out_of_range);
 }
 
+TEST(Uplink, RoundTripsTheVariableAtmosphereAndOnboardProperties) {
+  Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  s.onboard_force_model = dynamics::ForceModelOptions::flight_like_truth();
+  s.onboard_force_model.space_weather.daily = {{180.0, 4.0}};
+  s.onboard_force_model.space_weather.kp_daily_sigma = 0.5;
+  s.onboard_force_model.space_weather.seed = 99;
+  s.onboard_force_model.space_weather.start = s.epoch;
+  s.spacecraft[1].onboard_properties.mass_kg = 9.0;
+  const ObserverUplink u = make_uplink(s, "SV4");
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_j71.json";
+  write_uplink(u, path);
+  const ObserverUplink b = read_uplink(path);
+  EXPECT_EQ(b.force_model.atmosphere_model, dynamics::AtmosphereModel::kJacchiaScaledHarrisPriester);
+  EXPECT_EQ(b.force_model.space_weather, u.force_model.space_weather);
+  EXPECT_EQ(b.force_model.describe(), u.force_model.describe());
+  EXPECT_DOUBLE_EQ(b.onboard_properties(s.spacecraft[1].id).mass_kg, 9.0);
+  EXPECT_DOUBLE_EQ(b.onboard_properties("SV4").mass_kg, dynamics::SpacecraftProperties{}.mass_kg);
+  EXPECT_EQ(b.onboard_properties_by_id.size(), s.spacecraft.size());
+}
+
 TEST(Uplink, MalformedFileNamesFileAndKey) {
   const std::string path = ::testing::TempDir() + "/bad_uplink.json";
   std::ofstream(path) << R"({"scenario": "x", "epoch_tt_ns": "soon"})";

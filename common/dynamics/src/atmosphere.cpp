@@ -107,10 +107,8 @@ HarrisPriester HarrisPriester::from_file(const std::string& csv_path,
   return hp;
 }
 
-double HarrisPriester::density_kgpm3(const Vec3& r_eci_m, const Vec3& r_ecef_m,
-                                     const Vec3& r_sun_eci_m) const {
-  const double h = geodetic_height_m(r_ecef_m);
-  if (h >= height_m_.back()) return 0.0;
+HarrisPriester::Densities HarrisPriester::table_densities(double h) const {
+  if (h >= height_m_.back()) return {};
   if (h < height_m_.front()) {
     throw std::out_of_range("Harris-Priester: height " + std::to_string(h * 1e-3) +
                             " km is below the table's bottom (orbit decayed)");
@@ -125,8 +123,16 @@ double HarrisPriester::density_kgpm3(const Vec3& r_eci_m, const Vec3& r_ecef_m,
   // H = (h_i - h_i+1) / ln(rho_i+1 / rho_i), rho(h) = rho_i exp((h_i - h) / H).
   const double H_min = (h0 - h1) / std::log(rho_min_[i + 1] / rho_min_[i]);
   const double H_max = (h0 - h1) / std::log(rho_max_[i + 1] / rho_max_[i]);
-  const double rho_min = rho_min_[i] * std::exp((h0 - h) / H_min);
-  const double rho_max = rho_max_[i] * std::exp((h0 - h) / H_max);
+  return {rho_min_[i] * std::exp((h0 - h) / H_min), rho_max_[i] * std::exp((h0 - h) / H_max)};
+}
+
+double HarrisPriester::density_kgpm3(const Vec3& r_eci_m, const Vec3& r_ecef_m,
+                                     const Vec3& r_sun_eci_m) const {
+  const double h = geodetic_height_m(r_ecef_m);
+  const Densities d = table_densities(h);
+  if (d.max_kgpm3 == 0.0) return 0.0;
+  const double rho_min = d.min_kgpm3;
+  const double rho_max = d.max_kgpm3;
 
   // Apex of the diurnal bulge at the Sun's declination
   // and the Sun's right ascension plus the lag angle.

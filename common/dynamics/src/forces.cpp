@@ -9,6 +9,11 @@
 
 namespace artms::dynamics {
 
+namespace {
+// Gravity of flight_like_truth(): docs/dynamics.md, "Truth default and its cost".
+constexpr int kFlightLikeGravityDegree = 20;
+}  // namespace
+
 void SpacecraftProperties::validate() const {
   const auto positive = [](double v, const char* name) {
     if (!(v > 0.0) || !std::isfinite(v)) {
@@ -21,9 +26,38 @@ void SpacecraftProperties::validate() const {
   positive(cd, "cd");
   positive(srp_area_m2, "srp_area_m2");
   positive(cr, "cr");
+  if (!(drag_area_variation >= 0.0 && drag_area_variation < 1.0)) {
+    throw std::invalid_argument("spacecraft property drag_area_variation must lie in [0, 1), got " +
+                                std::to_string(drag_area_variation));
+  }
+}
+
+namespace {
+
+// cos 2u of the argument of latitude u of (r, v): c = n.r, s = (n x r).h with
+// n the ascending node and h the orbit normal (units), cos 2u = (c^2 - s^2)/(c^2 + s^2).
+double cos_twice_argument_of_latitude(const Vec3& r, const Vec3& v) {
+  const Vec3 h = r.cross(v).normalized();
+  Vec3 n(-h.y(), h.x(), 0.0);
+  const double nn = n.norm();
+  n = nn > 1e-12 ? Vec3(n / nn) : Vec3::UnitX();  // equatorial: u from the x axis
+  const double c = n.dot(r), s = n.cross(r).dot(h);
+  return (c * c - s * s) / (c * c + s * s);
+}
+
+}  // namespace
+
+ForceModelOptions ForceModelOptions::flight_like_truth() {
+  ForceModelOptions o;
+  o.gravity_degree = o.gravity_order = kFlightLikeGravityDegree;
+  o.drag = o.sun = o.moon = o.srp = true;
+  o.shadow = ShadowModel::kConical;
+  o.atmosphere_model = AtmosphereModel::kJacchiaScaledHarrisPriester;
+  return o;
 }
 
 ForceModelOptions ForceModelOptions::parse(std::string_view spec) {
+  if (spec == "flight-like") return flight_like_truth();
   ForceModelOptions o;
   o.drag = o.sun = o.moon = o.srp = false;
   if (spec == "two-body") {
@@ -43,6 +77,9 @@ ForceModelOptions ForceModelOptions::parse(std::string_view spec) {
     any = true;
     if (item == "drag") {
       o.drag = true;
+    } else if (item == "drag-jacchia") {
+      o.drag = true;
+      o.atmosphere_model = AtmosphereModel::kJacchiaScaledHarrisPriester;
     } else if (item == "sun") {
       o.sun = true;
     } else if (item == "moon") {
@@ -67,8 +104,8 @@ ForceModelOptions ForceModelOptions::parse(std::string_view spec) {
       o.gravity_order = m;
     } else {
       throw std::invalid_argument("force model: unknown item '" + item +
-                                  "' (expected two-body, j2, or a comma list of gravN, gravN_M, "
-                                  "drag, sun, moon, srp)");
+                                  "' (expected two-body, j2, flight-like, or a comma list of gravN, "
+                                  "gravN_M, drag, drag-jacchia, sun, moon, srp)");
     }
   }
   if (!any) throw std::invalid_argument("force model: empty specification");
@@ -78,7 +115,19 @@ ForceModelOptions ForceModelOptions::parse(std::string_view spec) {
 std::string ForceModelOptions::describe() const {
   std::ostringstream s;
   s << "gravity " << gravity_degree << "x" << gravity_order;
-  if (drag) s << ", Harris-Priester drag (n=" << atmosphere.cosine_exponent << ")";
+  if (drag && atmosphere_model == AtmosphereModel::kHarrisPriester) {
+    s << ", Harris-Priester drag (n=" << atmosphere.cosine_exponent << ")";
+  } else if (drag) {
+    const SpaceWeather& w = space_weather;
+    s << ", drag with Harris-Priester scaled by Jacchia 1971 (F10.7 " << w.f107_sfu << ", 81-day "
+      << w.f107_81day_sfu << ", Kp " << w.kp;
+    if (!w.daily.empty()) s << ", " << w.daily.size() << " daily values";
+    if (w.f107_daily_sigma_sfu > 0.0 || w.kp_daily_sigma > 0.0) {
+      s << ", day-to-day sigma F10.7 " << w.f107_daily_sigma_sfu << " Kp " << w.kp_daily_sigma;
+    }
+    if (jacchia.semiannual) s << ", semi-annual";
+    s << ", T_ref " << jacchia.reference_temperature_K << " K)";
+  }
   if (sun) s << ", Sun";
   if (moon) s << ", Moon";
   if (srp) s << ", SRP (" << (shadow == ShadowModel::kConical ? "conical" : "cylindrical") << " shadow)";
@@ -110,6 +159,19 @@ ForceModel::ForceModel(const ForceModelOptions& options, const GravityField& fie
   if (options_.drag && !atmosphere_) {
     throw std::invalid_argument("ForceModel: drag enabled but no atmosphere model given");
   }
+  if (options_.drag && options_.atmosphere_model == AtmosphereModel::kJacchiaScaledHarrisPriester) {
+    jacchia_.emplace(*atmosphere_, options_.space_weather, options_.jacchia);
+  }
+}
+
+double ForceModel::density(astro::TimeTT t, const Vec3& r_eci, const Vec3& r_ecef, const Vec3& r_sun) const {
+  if (jacchia_) return jacchia_->density_kgpm3(t, r_eci, r_ecef, r_sun);
+  return atmosphere_->density_kgpm3(r_eci, r_ecef, r_sun);
+}
+
+double ForceModel::density_kgpm3(astro::TimeTT t, const Vec3& r_eci_m) const {
+  if (!options_.drag) return 0.0;
+  return density(t, r_eci_m, astro::R_ecef_from_eci(t) * r_eci_m, sun_position_eci_m(t));
 }
 
 Vec3 ForceModel::evaluate(astro::TimeTT t, const StateVector& x, const SpacecraftProperties& sc,
@@ -134,8 +196,12 @@ Vec3 ForceModel::evaluate(astro::TimeTT t, const StateVector& x, const Spacecraf
   if (options_.sun) a += third_body_acceleration_mps2(x.r_m, r_sun, kGmSun_m3ps2);
   if (options_.moon) a += third_body_acceleration_mps2(x.r_m, moon_position_eci_m(t), kGmMoon_m3ps2);
   if (options_.drag) {
-    const double rho = atmosphere_->density_kgpm3(x.r_m, r_ecef, r_sun);
-    a += drag_acceleration_mps2(x.r_m, x.v_mps, rho, sc.cd, sc.drag_area_m2 / sc.mass_kg);
+    const double rho = density(t, x.r_m, r_ecef, r_sun);
+    double area_m2 = sc.drag_area_m2;
+    if (sc.drag_area_variation != 0.0) {
+      area_m2 *= 1.0 + sc.drag_area_variation * cos_twice_argument_of_latitude(x.r_m, x.v_mps);
+    }
+    a += drag_acceleration_mps2(x.r_m, x.v_mps, rho, sc.cd, area_m2 / sc.mass_kg);
   }
   if (options_.srp) {
     a += srp_acceleration_mps2(x.r_m, r_sun, sc.cr, sc.srp_area_m2 / sc.mass_kg, options_.shadow);

@@ -65,7 +65,11 @@ struct InitialOrbit {
 struct SpacecraftConfig {
   std::string id;  // e.g. "SV4"; [A-Za-z0-9_-]+
   InitialOrbit orbit;
+  // What the world flies (truth service, renderer): spacecraft[].mass_kg ...
   dynamics::SpacecraftProperties properties;
+  // The nominal values the ground uplinks for the onboard filter:
+  // spacecraft[].onboard (default: SpacecraftProperties{}, whatever the truth).
+  dynamics::SpacecraftProperties onboard_properties;
 };
 
 struct GnssConfig {
@@ -206,11 +210,15 @@ struct Scenario {
   double step_s = 60.0;     // lock-step period of the clock
   std::uint64_t seed = 1;
   // The world's forces (truth service, renderer) and the onboard model the
-  // uplink carries (SOD's propagator). A single `force_model` block in the
-  // file means both; `force_model: {truth: {...}, onboard: {...}}` sets them
-  // apart (a side left out keeps the defaults: the paper's onboard model).
+  // uplink carries (SOD's propagator). No block, or a single `force_model`
+  // block, means both (the paper's onboard model by default);
+  // `force_model: {truth: ..., onboard: ...}` sets them apart, keys left out
+  // on the truth side defaulting to ForceModelOptions::flight_like_truth(),
+  // on the onboard side to the paper's. Space weather counts its days from
+  // the epoch and draws from the seed.
   dynamics::ForceModelOptions force_model;
   dynamics::ForceModelOptions onboard_force_model;
+  // Same forces on both sides (the atmosphere's parameters only where drag is on).
   [[nodiscard]] bool force_models_agree() const;
   std::vector<SpacecraftConfig> spacecraft;
   std::vector<ObserverConfig> observers;

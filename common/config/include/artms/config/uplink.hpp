@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -61,6 +62,12 @@ struct ObserverUplink {
   std::string star_catalog_file;
   double apriori_age_days = 0.0;
   std::vector<TargetApriori> apriori;  // empty: no ground a-priori uplinked
+  // Nominal physical properties of the observer and every swarm member, as
+  // the ground knows them (scenario spacecraft[].onboard), by id.
+  std::map<std::string, dynamics::SpacecraftProperties> onboard_properties_by_id;
+  // The nominal properties of `id`; SpacecraftProperties{} for an id the
+  // uplink does not list (uplink files written before they were carried).
+  [[nodiscard]] dynamics::SpacecraftProperties onboard_properties(const std::string& id) const;
 };
 
 // Throws std::out_of_range if `spacecraft` is not an observer of s.

@@ -40,6 +40,15 @@ class HarrisPriester {
   [[nodiscard]] double density_kgpm3(const Vec3& r_eci_m, const Vec3& r_ecef_m,
                                      const Vec3& r_sun_eci_m) const;
 
+  // The table's night minimum and day maximum (kg/m^3) at a WGS84 height,
+  // exponentially interpolated; {0, 0} above the top, std::out_of_range
+  // below the bottom.
+  struct Densities {
+    double min_kgpm3 = 0.0;
+    double max_kgpm3 = 0.0;
+  };
+  [[nodiscard]] Densities table_densities(double height_m) const;
+
   [[nodiscard]] const HarrisPriesterOptions& options() const { return options_; }
 
  private:
