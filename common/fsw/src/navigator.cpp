@@ -69,8 +69,7 @@ double maneuver_sigma_mps(double mean_nis_or_d2) {
   return std::clamp(0.02 * std::sqrt(std::max(mean_nis_or_d2, 0.0)), 0.02, 1.0);
 }
 
-double nominal_ballistic_m2pkg() {
-  const dynamics::SpacecraftProperties sc;
+double nominal_ballistic_m2pkg(const dynamics::SpacecraftProperties& sc = {}) {
   return sc.cd * sc.drag_area_m2 / sc.mass_kg;
 }
 
@@ -113,7 +112,7 @@ double remote_bearing_max_age_s(const config::ObserverUplink& up) {
 }
 
 Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceModel& forces, NavigatorOptions options)
-    : up_(up), forces_(forces), opt_(options), onboard_(forces, dynamics::SpacecraftProperties{}) {
+    : up_(up), forces_(forces), opt_(options), onboard_(forces, up.onboard_properties(up.observer.spacecraft)) {
   fuse_remote_ = up.observer.mode == 3;
   if (opt_.remote_hold_s < 0.0) opt_.remote_hold_s = remote_bearing_max_age_s(up);
   if (fuse_remote_) opt_.max_lag_s = std::max(opt_.max_lag_s, opt_.remote_hold_s);
@@ -305,7 +304,11 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
     sod::StateLayout layout{n, 0};
     layout.n_time_tag = st.time_tag == TT::kNone ? 0 : st.time_tag == TT::kOffset ? 1 : 2;
     layout.ballistic = st.estimate_ballistic;
-    filter_.emplace(forces_, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{}, layout, sod_opt_);
+    // One nominal for every target (the filter propagates them alike): the
+    // first target's uplinked properties; a target that differs is left to
+    // its differential ballistic state.
+    filter_.emplace(forces_, up_.onboard_properties(up_.observer.spacecraft),
+                    up_.onboard_properties(target_ids_.empty() ? std::string() : target_ids_.front()), layout, sod_opt_);
     const int na = layout.size() - layout.aux_offset();
     aux = Eigen::VectorXd::Zero(na);
     Eigen::VectorXd var = Eigen::VectorXd::Zero(na);

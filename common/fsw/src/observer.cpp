@@ -73,7 +73,7 @@ Observer::Observer(ObserverSetup setup, std::string source)
       up_(setup_.uplink),
       me_(up_.observer.spacecraft),
       events_(std::move(source)),
-      onboard_(*setup_.forces, dynamics::SpacecraftProperties{}),
+      onboard_(*setup_.forces, setup_.uplink.onboard_properties(setup_.uplink.observer.spacecraft)),
       n_scan_(imp::SamusOptions{}.n_scan),
       // As old as a bearing can be when broadcast and still reach a
       // receiver's filter in time (its remote hold minus the transport: one
