@@ -249,8 +249,10 @@ void Navigator::set_suspect(int k, bool on, const std::string& why) {
 }
 
 void Navigator::record_nis(int k, const sod::UpdateSummary& s) {
-  if (k >= 0 && s.usable && suspect_[static_cast<std::size_t>(k)] && filter_) {
-    // Healthy again once a whole NIS window fits (or, without the window, one bearing).
+  if (k >= 0 && s.usable && suspect_[static_cast<std::size_t>(k)] && filter_ && !next_bod_) {
+    // Without BOD (whose health check 1 clears a suspect target when it agrees
+    // or re-initialises it): healthy again once a whole NIS window fits (or,
+    // without the window, one bearing).
     const double nis = filter_->recent_mean_nis(k);
     if (sod_opt_.health.nis_window == 0) {
       set_suspect(k, false, "a bearing fits its estimate again");
@@ -914,6 +916,8 @@ void Navigator::run_bod(astro::TimeTT t_est) {
         std::snprintf(buf, sizeof buf, "; health check 1 passed for target %s (squared Mahalanobis distance %.1f <= %.2f)",
                       target_ids_[static_cast<std::size_t>(k)].c_str(), d2, chi2);
         messages_.push_back(head + r.brief() + buf);
+        std::snprintf(buf, sizeof buf, "BOD agrees (health check 1 passed, squared Mahalanobis distance %.1f)", d2);
+        set_suspect(k, false, buf);
       }
       continue;
     }
