@@ -335,8 +335,22 @@ def health_events(run_dir, observer, target):
     return out
 
 
-def shorten(msg, target, n=64):
+_SHORT = [  # events.log health texts (common/fsw navigator) -> the gist, for the table (the JSON keeps the text)
+    (re.compile(r"suspect \(health 1\): its bearings do not fit its covariance \(health check 5: mean NIS ([^ ]+)"),
+     r"suspect: health check 5 (mean NIS \1)"),
+    (re.compile(r"suspect \(health 1\): no bearing for ([^ ]+) s while the unbound IMP track"),
+     r"suspect: no bearing for \1 s, an unbound track near"),
+    (re.compile(r"unhealthy \(health check 1: squared Mahalanobis distance ([^ ]+) .*?\): (re-initialised from BOD)"),
+     r"health check 1 failed (d2 \1): \2"),
+]
+
+
+def shorten(msg, target, n=60):
     msg = re.sub(r"^SOD target " + re.escape(target) + r" ", "", msg)
+    for rx, short in _SHORT:
+        m = rx.search(msg)
+        if m:
+            return m.expand(short)
     return msg if len(msg) <= n else msg[:n - 3] + "..."
 
 
