@@ -421,8 +421,11 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
     }
     as.last = e.t;
     if (as.target < 0) {
-      // Association: this measurement against every target's prediction.
-      if (!f.time_update(e.t).usable) return;
+      // Association: this measurement against every target's prediction,
+      // at the time the image was taken as SOD knows it (its time-tag offset).
+      astro::TimeTT t_image = e.t.plus_seconds(-time_tag_offset_at(e.t));
+      if (t_image < f.epoch()) t_image = e.t;
+      if (!f.time_update(t_image).usable) return;
       Eigen::Vector2d p;
       if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(f.observer()), p)) return;
       const double s2 = std::pow(bearing_sigma(e.imp_sigma_rad), 2);
@@ -451,7 +454,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
           }
         }
         const int k_best = static_cast<int>(order[0]);
-        if (best >= opt_.association_max_d2 && best < opt_.lost_max_d2 && second > opt_.association_ambiguity * best &&
+        if (best >= opt_.lost_min_d2 && best < opt_.lost_max_d2 && second > opt_.association_ambiguity * best &&
             !taken && f.counters(k_best).accepted > 0 &&
             f.counters(k_best).steps_without_update >= opt_.lost_after_steps) {
           // The target's own bearings stopped and a new track sits nearest
@@ -511,6 +514,15 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
   }
   check_health();
   report_aux();
+}
+
+double Navigator::time_tag_offset_at(astro::TimeTT t) const {
+  if (!filter_ || filter_->layout().n_time_tag == 0) return 0.0;
+  const auto& L = filter_->layout();
+  const auto& x = filter_->state();
+  double dt = x[L.time_tag_offset()];
+  if (L.n_time_tag > 1) dt += x[L.time_tag_drift()] * astro::seconds_between(filter_->epoch(), t);
+  return dt;
 }
 
 void Navigator::report_aux() {
@@ -820,7 +832,8 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     astro::TimeTT last = h.front().t;
     for (const auto& b : h) {
       if (b.t > t_est) continue;
-      batch.push_back({b.t, b.u_eci, b.q_cam_from_eci.toRotationMatrix()});
+      // The time tags as SOD knows them: less its estimated offset (and drift).
+      batch.push_back({b.t.plus_seconds(-time_tag_offset_at(b.t)), b.u_eci, b.q_cam_from_eci.toRotationMatrix()});
       last = std::max(last, b.t);
     }
     // A track that is gone (nothing in the latest half hour), or too short.
@@ -964,10 +977,23 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       continue;
     }
     const double d2_best = bod_distance2(best, b);
-    last_bod_[static_cast<std::size_t>(best)] = est;
     const int off = f.layout().target_offset(best);
     const double sigma_sod = std::sqrt(f.covariance()(off + 1, off + 1));
     const double sigma_bod = std::sqrt(b.P(1, 1));
+    if (d2_best > chi2 && !suspect_[static_cast<std::size_t>(best)] && f.counters(best).accepted > 0) {
+      // A target whose own bearings fit its estimate is not re-initialised
+      // from a track it has not been seen on: the track is most likely
+      // another object, or the same target seen on another track (after a
+      // manoeuvre the target is suspect first: health check 5 or a lost track).
+      std::snprintf(buf, sizeof buf,
+                    "; not used: target %s is nearest in dlambda but its own bearings fit its estimate (squared "
+                    "distance %.1f > %.2f, not suspect)",
+                    target_ids_[static_cast<std::size_t>(best)].c_str(), d2_best, chi2);
+      decided(-1, std::string("not used") + buf);
+      messages_.push_back(head + r.brief() + buf);
+      continue;
+    }
+    last_bod_[static_cast<std::size_t>(best)] = est;
     messages_.push_back(head + r.brief());
     if (d2_best > chi2) {
       std::snprintf(buf, sizeof buf,

@@ -94,10 +94,11 @@ struct NavigatorOptions {
   double blend_separation_px = 6.0;
   // A target that had bearings and has had none for lost_after_steps filter
   // steps, while an unbound IMP track is unambiguously nearest its prediction
-  // (mean d2 below lost_max_d2), is suspect: its covariance is inflated so
+  // (mean d2 in [lost_min_d2, lost_max_d2)), is suspect: its covariance is inflated so
   // that the track can be bound again (a target's unknown manoeuvre: the
   // track SAMUS starts after the jump; issue 17).
   int lost_after_steps = 10;
+  double lost_min_d2 = 100.0;  // far beyond association_max_d2: a jump, not a slightly off prediction
   double lost_max_d2 = 1e7;
 };
 
@@ -336,6 +337,8 @@ class Navigator {
   std::optional<astro::TimeTT> next_aux_report_;
   // Hourly event with the auxiliary states' estimates (time tag, drag).
   void report_aux();
+  // SOD's estimate of the camera's time-tag offset at t (0 without the state).
+  [[nodiscard]] double time_tag_offset_at(astro::TimeTT t) const;
   std::size_t bod_attempts_ = 0, bod_usable_ = 0;
   std::vector<bus::BodAttempt> bod_records_;
   // Per target: its bound track's bearings were refused by the gate and none
