@@ -68,8 +68,9 @@ int run(int argc, char** argv) {
     std::vector<std::pair<std::string, truth::CowellPropagator>> props;
     for (const auto& s : sc.spacecraft) {
       std::vector<dynamics::ImpulsiveManeuver> man;
-      for (const auto& m : sc.maneuvers) {
-        if (m.spacecraft == s.id && sc.epoch < m.epoch) man.push_back({m.epoch, m.dv_rtn_mps});
+      for (std::size_t i = 0; i < sc.maneuvers.size(); ++i) {
+        const auto& m = sc.maneuvers[i];
+        if (m.spacecraft == s.id && sc.epoch < m.epoch) man.push_back({m.epoch, config::executed_maneuver_dv(sc, i)});
       }
       props.emplace_back(s.id, truth::CowellPropagator(forces, s.properties, sc.epoch, sc.initial_state_eci(s.id), man));
     }

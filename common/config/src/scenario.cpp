@@ -15,6 +15,7 @@
 #include <iomanip>
 #include <limits>
 #include <map>
+#include <random>
 #include <set>
 #include <sstream>
 #include <string_view>
@@ -1391,7 +1392,7 @@ class Parser {
     const auto list = items(ctx_, v, "maneuvers {spacecraft, epoch, dv_rtn_mps}");
     if (!list) return;
     for (const Val& item : *list) {
-      Map m(ctx_, item, {"spacecraft", "epoch", "dv_rtn_mps"});
+      Map m(ctx_, item, {"spacecraft", "epoch", "dv_rtn_mps", "planned", "execution_sigma_fraction"});
       if (!m.ok()) continue;
       ManeuverConfig mc;
       bool ok = true;
@@ -1421,6 +1422,8 @@ class Parser {
       } else {
         ok = false;
       }
+      bool_field(ctx_, m, "planned", mc.planned);
+      number_field(ctx_, m, "execution_sigma_fraction", mc.execution_sigma_fraction, closed(0.0, 0.5));
       if (const Val* dv = m.require("dv_rtn_mps", "[dv_r, dv_t, dv_n] in m/s")) {
         if (auto x = read_vector<3>(ctx_, *dv, "[dv_r, dv_t, dv_n] in m/s")) {
           mc.dv_rtn_mps = *x;
@@ -1608,6 +1611,20 @@ double Scenario::reference_period_s() const {
   }
   const SpacecraftConfig& sc = spacecraft_by_id(observers.front().spacecraft);
   return astro::orbit_period_s(absolute_qns(*this, sc, 0).a_m);
+}
+
+astro::Vec3 executed_maneuver_dv(const Scenario& s, std::size_t index) {
+  const ManeuverConfig& m = s.maneuvers.at(index);
+  if (!(m.execution_sigma_fraction > 0.0)) return m.dv_rtn_mps;
+  std::seed_seq seq{static_cast<std::uint64_t>(s.seed), std::uint64_t{0x6d616e}, std::uint64_t{index}};
+  std::mt19937_64 rng(seq);
+  std::normal_distribution<double> g(0.0, m.execution_sigma_fraction);
+  const double scale = 1.0 + g(rng);
+  // Pointing error: a small rotation about two axes normal to the delta-v.
+  const astro::Vec3 u = m.dv_rtn_mps.normalized();
+  const astro::Vec3 e1 = u.unitOrthogonal(), e2 = u.cross(e1);
+  const astro::Vec3 dir = (u + g(rng) * e1 + g(rng) * e2).normalized();
+  return scale * m.dv_rtn_mps.norm() * dir;
 }
 
 Scenario load_scenario(const std::string& path) {

@@ -87,6 +87,9 @@ ObserverUplink make_uplink(const Scenario& s, const std::string& spacecraft) {
     u.swarm_ids.push_back(sc.id);
     u.onboard_properties_by_id[sc.id] = sc.onboard_properties;
   }
+  for (const auto& m : s.maneuvers) {
+    if (m.planned && m.spacecraft == spacecraft) u.planned_maneuvers.push_back({m.epoch, m.dv_rtn_mps, m.execution_sigma_fraction});
+  }
   return u;
 }
 
@@ -100,6 +103,12 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
   }
   json onboard = json::object();
   for (const auto& [id, p] : u.onboard_properties_by_id) onboard[id] = properties_json(p);
+  json planned = json::array();
+  for (const auto& m : u.planned_maneuvers) {
+    planned.push_back({{"t_tt_ns", m.t.ns_since_j2000},
+                       {"dv_rtn_mps", {m.dv_rtn_mps[0], m.dv_rtn_mps[1], m.dv_rtn_mps[2]}},
+                       {"execution_sigma_fraction", m.execution_sigma_fraction}});
+  }
   json outages = json::array();
   for (const auto& w : o.gnss.outages) outages.push_back({w.start.ns_since_j2000, w.end.ns_since_j2000});
   const json j = {
@@ -180,6 +189,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
       {"apriori_age_days", u.apriori_age_days},
       {"apriori", apriori},
       {"onboard_properties", onboard},
+      {"planned_maneuvers", planned},
   };
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write uplink file " + path);
@@ -325,6 +335,20 @@ ObserverUplink read_uplink(const std::string& path) {
           throw std::runtime_error(path + ": apriori of " + ta.target + ": non-finite value");
         }
         u.apriori.push_back(ta);
+      }
+    }
+    if (j.contains("planned_maneuvers")) {
+      for (const auto& m : j.at("planned_maneuvers")) {
+        ObserverUplink::PlannedManeuver pm;
+        pm.t = astro::TimeTT{m.at("t_tt_ns").get<std::int64_t>()};
+        const auto dv = m.at("dv_rtn_mps").get<std::vector<double>>();
+        if (dv.size() != 3) throw std::runtime_error(path + ": planned_maneuvers: dv_rtn_mps needs 3 values");
+        pm.dv_rtn_mps = astro::Vec3(dv[0], dv[1], dv[2]);
+        pm.execution_sigma_fraction = m.at("execution_sigma_fraction").get<double>();
+        if (!pm.dv_rtn_mps.allFinite() || !(pm.execution_sigma_fraction >= 0.0)) {
+          throw std::runtime_error(path + ": planned_maneuvers: non-finite or negative value");
+        }
+        u.planned_maneuvers.push_back(pm);
       }
     }
     if (j.contains("onboard_properties")) {

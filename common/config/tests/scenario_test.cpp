@@ -321,6 +321,38 @@ TEST(ScenarioLoad, TruthAndOnboardForceModelsApart) {
   EXPECT_EQ(make_uplink(s, "SV4").force_model.gravity_degree, 10);
 }
 
+TEST(ScenarioLoad, PlannedManeuverGoesUpToItsObserverAndIsExecutedWithItsError) {
+  const Scenario s = load_scenario(write_file(
+      "man_planned.yaml",
+      kValid + "maneuvers:\n  - {spacecraft: SV4, epoch: 2h, dv_rtn_mps: [0, 0.05, 0], planned: true, "
+               "execution_sigma_fraction: 0.05}\n  - {spacecraft: SV2, epoch: 3h, dv_rtn_mps: [0, 0.5, 0]}\n"));
+  ASSERT_EQ(s.maneuvers.size(), 2u);
+  EXPECT_TRUE(s.maneuvers[0].planned);
+  EXPECT_FALSE(s.maneuvers[1].planned);
+  // The uplink carries the observer's own planned burn (commanded), not the target's.
+  const ObserverUplink u = make_uplink(s, "SV4");
+  ASSERT_EQ(u.planned_maneuvers.size(), 1u);
+  EXPECT_EQ(u.planned_maneuvers[0].t, s.epoch.plus_seconds(7200.0));
+  EXPECT_DOUBLE_EQ(u.planned_maneuvers[0].dv_rtn_mps[1], 0.05);
+  EXPECT_DOUBLE_EQ(u.planned_maneuvers[0].execution_sigma_fraction, 0.05);
+  const std::string path = ::testing::TempDir() + "/uplink_planned.json";
+  write_uplink(u, path);
+  const ObserverUplink b = read_uplink(path);
+  ASSERT_EQ(b.planned_maneuvers.size(), 1u);
+  EXPECT_EQ(b.planned_maneuvers[0].dv_rtn_mps, u.planned_maneuvers[0].dv_rtn_mps);
+  // The truth executes it with a deterministic error of the stated size.
+  const astro::Vec3 dv = executed_maneuver_dv(s, 0);
+  EXPECT_EQ(dv, executed_maneuver_dv(s, 0));
+  EXPECT_NE(dv, s.maneuvers[0].dv_rtn_mps);
+  EXPECT_NEAR(dv.norm(), 0.05, 4 * 0.05 * 0.05);
+  EXPECT_EQ(executed_maneuver_dv(s, 1), s.maneuvers[1].dv_rtn_mps);
+  const auto diags = validate_scenario_file(write_file(
+      "man_bad.yaml", kValid + "maneuvers:\n  - {spacecraft: SV4, epoch: 2h, dv_rtn_mps: [0, 0.05, 0], "
+                               "execution_sigma_fraction: 2}\n"));
+  ASSERT_EQ(diags.size(), 1u) << dump(diags);
+  EXPECT_EQ(diags[0].field, "maneuvers[0].execution_sigma_fraction");
+}
+
 TEST(ScenarioValidation, ABadFieldOfOneForceModelSideIsNamed) {
   const std::string path = write_file(
       "fm_bad.yaml", kValid + "force_model:\n  truth: {gravity_degree: 400}\n  onboard: {gravity_degree: 10}\n");

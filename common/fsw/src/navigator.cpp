@@ -138,6 +138,29 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   nis_n_.assign(target_ids_.size(), 0);
   remote_.assign(target_ids_.size(), 0);
   sod_opt_ = sod_options(up.tuning.sod);
+  planned_ = up.planned_maneuvers;
+  std::stable_sort(planned_.begin(), planned_.end(), [](const auto& a, const auto& b) { return a.t < b.t; });
+}
+
+void Navigator::apply_planned_maneuvers(astro::TimeTT t) {
+  while (next_planned_ < planned_.size() && !(t < planned_[next_planned_].t)) {
+    const auto& m = planned_[next_planned_++];
+    if (!filter_ || reinit_pending_ || m.t < filter_->epoch()) {
+      messages_.push_back("planned maneuver at " + astro::utc_string(m.t, 0) +
+                          " not applied to SOD (no estimate at that epoch; the next GNSS fixes carry it)");
+      continue;
+    }
+    // Execution error: 1-sigma fraction of the magnitude along the delta-v
+    // and the same fraction (rad) of pointing error across it.
+    const double s = m.execution_sigma_fraction * m.dv_rtn_mps.norm();
+    const astro::Mat3 P_dv = astro::Mat3::Identity() * std::max(s * s, 1e-10);
+    const sod::TimeUpdateSummary r = filter_->apply_observer_maneuver(m.t, m.dv_rtn_mps, P_dv);
+    char buf[240];
+    std::snprintf(buf, sizeof buf, "planned maneuver at %s applied in SOD: dv_RTN [%.4f, %.4f, %.4f] m/s, execution 1-sigma %.4f m/s%s%s",
+                  astro::utc_string(m.t, 0).c_str(), m.dv_rtn_mps[0], m.dv_rtn_mps[1], m.dv_rtn_mps[2], s,
+                  r.usable ? "" : "; NOT applied: ", r.usable ? "" : r.why.c_str());
+    messages_.push_back(buf);
+  }
 }
 
 void Navigator::add_remote(const RemoteBroadcast& b) {
@@ -386,6 +409,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       });
     }
   }
+  apply_planned_maneuvers(e.t);
   if (!filter_ || (reinit_pending_ && e.kind == EventKind::kGnss)) {
     if (e.kind == EventKind::kGnss) initialise(e.gnss);
     else ++late_;
@@ -553,6 +577,7 @@ void Navigator::report_aux() {
 }
 
 void Navigator::process_remote(const std::vector<Event>& group) {
+  if (!group.empty()) apply_planned_maneuvers(group.front().t);
   if (!filter_ || reinit_pending_ || group.empty()) return;
   auto& f = *filter_;
   if (group.front().t < f.epoch()) {

@@ -31,8 +31,8 @@ Truth::Truth(const config::Scenario& sc, std::shared_ptr<const dynamics::ForceMo
   // Truth propagators, one per spacecraft, with the scenario's maneuvers.
   for (const auto& s : sc.spacecraft) {
     std::vector<dynamics::ImpulsiveManeuver> man;
-    for (const auto& m : sc.maneuvers) {
-      if (m.spacecraft == s.id) man.push_back({m.epoch, m.dv_rtn_mps});
+    for (std::size_t i = 0; i < sc.maneuvers.size(); ++i) {
+      if (sc.maneuvers[i].spacecraft == s.id) man.push_back({sc.maneuvers[i].epoch, config::executed_maneuver_dv(sc, i)});
     }
     props_.emplace_back(s.id, truth::CowellPropagator(*forces_, s.properties, sc.epoch, sc.initial_state_eci(s.id), man));
   }

@@ -597,6 +597,66 @@ UpdateSummary SodFilter::update_gnss(const GnssMeasurement& meas) {
                           -1);
 }
 
+TimeUpdateSummary SodFilter::apply_observer_maneuver(TimeTT t, const Vec3& dv_rtn_mps, const Mat3& P_dv) {
+  TimeUpdateSummary s;
+  if (!initialized_) {
+    s.why = "filter not initialised";
+    return s;
+  }
+  if (!dv_rtn_mps.allFinite() || !P_dv.allFinite()) {
+    s.why = "maneuver delta-v or covariance not finite";
+    return s;
+  }
+  if (t != t_) {
+    s = time_update(t);
+    if (!s.usable) return s;
+  }
+  const double gm = gm_m3ps2_;
+  const StateLayout lay = layout_;
+  const auto burn = [gm, lay](const VectorXd& x, const Vec3& dv) {
+    VectorXd y = x;
+    const QnsElements obs0 = QnsElements::from_vector(x.head<6>());
+    const QnsElements obs1 =
+        astro::qns_from_cartesian(dynamics::apply_maneuver(astro::cartesian_from_qns(obs0, gm), dv), gm);
+    y.head<6>() = obs1.as_vector();
+    for (int k = 0; k < lay.n_targets; ++k) {
+      const int off = lay.target_offset(k);
+      const QnsElements tgt = astro::qns_from_roe(obs0, Roe::from_vector(x.segment<6>(off)));
+      y.segment<6>(off) = astro::roe_from_qns(obs1, tgt).as_vector();
+    }
+    return y;
+  };
+  const int n = layout_.size(), m = 2 * n + 1;
+  MatrixXd X;
+  if (!sigma_points(X)) {
+    s.why = "covariance not positive definite before the maneuver";
+    return s;
+  }
+  MatrixXd Y(n, m);
+  for (int j = 0; j < m; ++j) Y.col(j) = burn(X.col(j), dv_rtn_mps);
+  VectorXd mean = Y.col(0);
+  for (int j = 1; j < m; ++j) mean += wm_[j] * state_difference(Y.col(j), Y.col(0));
+  MatrixXd P = MatrixXd::Zero(n, n);
+  for (int j = 0; j < m; ++j) {
+    const VectorXd d = state_difference(Y.col(j), mean);
+    P.noalias() += wc_[j] * d * d.transpose();
+  }
+  // Execution error: central differences of the map by the delta-v (1 mm/s).
+  MatrixXd J(n, 3);
+  for (int i = 0; i < 3; ++i) {
+    Vec3 h = Vec3::Zero();
+    h[i] = 1e-3;
+    J.col(i) = state_difference(burn(x_, dv_rtn_mps + h), burn(x_, dv_rtn_mps - h)) / 2e-3;
+  }
+  P += J * P_dv * J.transpose();
+  if (!store(mean, P)) {
+    s.why = "covariance after the maneuver not positive definite (or state not finite)";
+    return s;
+  }
+  s.usable = true;
+  return s;
+}
+
 // ---------------------------------------------------------------- health
 
 BodComparison SodFilter::check_bod(int target, const BodEstimate& bod) {

@@ -47,6 +47,10 @@ class Truth {
     for (auto& q : tgt_) q = prop_.propagate(q, t_, t);
     t_ = t;
   }
+  // An impulsive manoeuvre of the observer (delta-v in its RTN frame).
+  void apply_observer_dv(const Vec3& dv_rtn_mps) {
+    obs_ = astro::qns_from_cartesian(dynamics::apply_maneuver(astro::cartesian_from_qns(obs_), dv_rtn_mps));
+  }
   // An impulsive manoeuvre of target k (delta-v in its RTN frame).
   void apply_target_dv(int k, const Vec3& dv_rtn_mps) {
     tgt_[k] = astro::qns_from_cartesian(dynamics::apply_maneuver(astro::cartesian_from_qns(tgt_[k]), dv_rtn_mps));

@@ -191,6 +191,12 @@ struct ManeuverConfig {
   std::string spacecraft;
   astro::TimeTT epoch;
   astro::Vec3 dv_rtn_mps = astro::Vec3::Zero();
+  // Planned by the ground: uplinked to the spacecraft's own observer, whose
+  // SOD applies it in its time update; the truth executes it with a
+  // magnitude error of 1-sigma execution_sigma_fraction and a pointing error
+  // of the same size in radians (drawn with the run's seed).
+  bool planned = false;
+  double execution_sigma_fraction = 0.0;
 };
 
 // Injected faults per observer (empty observer = all observers).
@@ -239,6 +245,10 @@ struct Scenario {
 // together as a ScenarioError (syntax errors, wrong types, missing required
 // fields, unknown keys, out-of-range values, unknown or duplicate ids).
 Scenario load_scenario(const std::string& path);
+// The delta-v the truth executes for s.maneuvers[index]: the planned one
+// with its execution error (ManeuverConfig::execution_sigma_fraction) drawn
+// from the scenario seed; the commanded one for an unplanned maneuver.
+astro::Vec3 executed_maneuver_dv(const Scenario& s, std::size_t index);
 // The same checks, returning the diagnostics instead of throwing (empty =
 // valid). For `artms-swarm validate`.
 std::vector<Diagnostic> validate_scenario_file(const std::string& path);

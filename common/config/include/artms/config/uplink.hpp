@@ -65,6 +65,14 @@ struct ObserverUplink {
   // Nominal physical properties of the observer and every swarm member, as
   // the ground knows them (scenario spacecraft[].onboard), by id.
   std::map<std::string, dynamics::SpacecraftProperties> onboard_properties_by_id;
+  // The observer's own planned maneuvers (scenario maneuvers[] with planned:
+  // true): commanded delta-v and the 1-sigma fraction of its execution error.
+  struct PlannedManeuver {
+    astro::TimeTT t;
+    astro::Vec3 dv_rtn_mps = astro::Vec3::Zero();
+    double execution_sigma_fraction = 0.0;
+  };
+  std::vector<PlannedManeuver> planned_maneuvers;
   // The nominal properties of `id`; SpacecraftProperties{} for an id the
   // uplink does not list (uplink files written before they were carried).
   [[nodiscard]] dynamics::SpacecraftProperties onboard_properties(const std::string& id) const;

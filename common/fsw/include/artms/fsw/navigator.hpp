@@ -335,6 +335,12 @@ class Navigator {
   std::map<int, std::deque<TrackBearing>> history_;
   std::optional<astro::TimeTT> next_bod_;
   std::optional<astro::TimeTT> next_aux_report_;
+  // The observer's own planned maneuvers (uplink), in time order; the next
+  // one not yet applied to the filter.
+  std::vector<config::ObserverUplink::PlannedManeuver> planned_;
+  std::size_t next_planned_ = 0;
+  // Applies the planned maneuvers due before t (the filter moves to each).
+  void apply_planned_maneuvers(astro::TimeTT t);
   // Hourly event with the auxiliary states' estimates (time tag, drag).
   void report_aux();
   // SOD's estimate of the camera's time-tag offset at t (0 without the state).

@@ -262,6 +262,13 @@ class SodFilter {
   // the assignment test of remote measurements.
   UpdateSummary update_line_of_sight(const LineOfSightMeasurement& m, bool dry_run = false);
 
+  // The observer's own planned impulsive maneuver (delta-v in its RTN frame)
+  // at t, with the covariance of its execution error: the filter moves to t,
+  // every sigma point's observer gets the delta-v and its targets' ROE are
+  // recomputed against the new observer orbit (the targets did not move);
+  // P += J P_dv J^T with J the derivative of that map by the delta-v.
+  TimeUpdateSummary apply_observer_maneuver(TimeTT t, const Vec3& dv_rtn_mps, const Mat3& P_dv);
+
   // Health check (1): compares a BOD estimate (at epoch()) with the target's
   // block and stores the result for health() and reinitialize_target_from_bod().
   BodComparison check_bod(int target, const BodEstimate& bod);
