@@ -93,7 +93,12 @@ CASES = [
                "spacecraft[id=SV2].drag_area_m2": Scale(2.0, 0.068)}},
     {"name": "cd_3x", "description": "truth Cd of SV2 x3",
      "edits": {"spacecraft[id=SV2].cd": Scale(3.0, 2.2)}},
-    {"name": "observer_burn", "description": "SV4 (the observer) burns 0.05 m/s along-track at 6 h, not uplinked",
+    {"name": "observer_burn", "description": "SV4 (the observer) burns 0.05 m/s along-track at 6 h, planned and "
+     "uplinked, executed with a 5 % error",
+     "edits": {"maneuvers[+]": {"spacecraft": "SV4", "epoch": "6h", "dv_rtn_mps": ALONG_TRACK_0_05, "planned": True,
+                                "execution_sigma_fraction": 0.05}}},
+    {"name": "observer_burn_unplanned", "description": "SV4 (the observer) burns 0.05 m/s along-track at 6 h, "
+     "not uplinked (a thruster fault)",
      "edits": {"maneuvers[+]": {"spacecraft": "SV4", "epoch": "6h", "dv_rtn_mps": ALONG_TRACK_0_05}}},
     {"name": "osculating_table2", "description": "Table 2 ROE of SV2 and SV3 read as osculating (the base: mean)",
      "edits": {"spacecraft[id=SV2].relative.roe_type": "osculating",
@@ -110,6 +115,14 @@ CASES = [
                "spacecraft[id=SV3].drag_area_m2": Scale(0.5, 0.068)}},
     {"name": "target_burn", "description": "SV2 (a target) burns 0.05 m/s along-track at 8 h",
      "edits": {"maneuvers[+]": {"spacecraft": "SV2", "epoch": "8h", "dv_rtn_mps": ALONG_TRACK_0_05}}},
+    # The remedy for the clock cases: SOD estimates the time-tag offset and drift (a filter setting, not the world).
+    {"name": "tag_plus_0.05_estimated", "description": "tag_plus_0.05 with SOD estimating the time-tag offset and drift",
+     "edits": {"faults[observer=SV4].time_tag_offset_s": 0.05,
+               "observers[spacecraft=SV4].camera.time_tag_correction_s": DELETE,
+               "tuning.sod.time_tag": {"estimate": "drift"}}},
+    {"name": "tag_drift_50ppm_estimated", "description": "tag_drift_50ppm with SOD estimating the time-tag offset "
+     "and drift",
+     "edits": {"faults[observer=SV4].time_tag_drift_ppm": 50, "tuning.sod.time_tag": {"estimate": "drift"}}},
 ]
 
 HEALTH_PATTERNS = ("suspect (health 1)", "unhealthy (", "health check 1 failed", "health check 5")

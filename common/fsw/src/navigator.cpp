@@ -699,6 +699,11 @@ void Navigator::check_health() {
       const double nis = f.recent_mean_nis(ki);
       const double sigma_dv = maneuver_sigma_mps(nis);
       f.inflate_target_maneuver(ki, sigma_dv, f.recent_nis_span_s(ki));
+      // A drag the ballistic state had not learnt looks the same: open it again.
+      if (f.layout().ballistic) {
+        f.inflate_auxiliary(f.layout().ballistic_index(ki),
+                            std::pow(up_.tuning.sod.ballistic_sigma_fraction * nominal_ballistic_m2pkg(), 2));
+      }
       char buf[300];
       std::snprintf(buf, sizeof buf,
                     "its bearings do not fit its covariance (health check 5: %s); covariance inflated by an "

@@ -816,6 +816,14 @@ void SodFilter::inflate_target_maneuver(int target, double sigma_dv_mps, double 
   counters_[target].consecutive_large_residuals = 0;
 }
 
+void SodFilter::inflate_auxiliary(int index, double add_variance) {
+  if (index < layout_.aux_offset() || index >= layout_.size())
+    throw std::invalid_argument("SodFilter::inflate_auxiliary: index outside the auxiliary block");
+  if (!std::isfinite(add_variance) || add_variance < 0.0)
+    throw std::invalid_argument("SodFilter::inflate_auxiliary: variance must be finite and >= 0");
+  P_(index, index) += add_variance;
+}
+
 double SodFilter::recent_nis_span_s(int target) const {
   const int w = options_.health.nis_window;
   if (!std::isfinite(recent_mean_nis(target))) return kNaN;

@@ -179,7 +179,10 @@ struct SodTuning {
   double time_tag_sigma_s = 1.0;          // initial 1-sigma of the offset
   double time_tag_drift_sigma_ppm = 100.0;  // initial 1-sigma of the drift
   bool estimate_ballistic = false;
-  double ballistic_sigma_fraction = 0.5;  // initial 1-sigma of dB over the nominal Cd A/m
+  // Initial 1-sigma of dB over the nominal Cd A/m: the effective dB is the
+  // true one times the density's error, and Harris-Priester's mean table is
+  // 2-4 x too thin at high solar activity (docs/sod.md).
+  double ballistic_sigma_fraction = 2.0;
 };
 struct ArtmsTuning {
   ImpTuning imp;

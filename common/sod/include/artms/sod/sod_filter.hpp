@@ -289,6 +289,10 @@ class SodFilter {
   // the target's NIS window. Throws std::invalid_argument for a bad target or
   // a sigma that is not finite and positive.
   void inflate_target_maneuver(int target, double sigma_dv_mps, double since_s);
+  // Adds variance to one auxiliary state (its cross-covariances kept).
+  // Throws std::invalid_argument for an index outside the auxiliary block or
+  // a variance that is not finite and >= 0.
+  void inflate_auxiliary(int index, double add_variance);
   // Time span of the target's NIS window (s; NaN until full).
   [[nodiscard]] double recent_nis_span_s(int target) const;
   // Mean NIS of the target's last health.nis_window bearings (NaN until full).
