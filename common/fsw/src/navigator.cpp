@@ -69,6 +69,14 @@ double maneuver_sigma_mps(double mean_nis_or_d2) {
   return std::clamp(0.02 * std::sqrt(std::max(mean_nis_or_d2, 0.0)), 0.02, 1.0);
 }
 
+// Execution error of a planned maneuver: its 1-sigma fraction of the
+// magnitude along the delta-v and the same fraction (rad) of pointing error
+// across it, isotropic (floored at 10 um/s).
+astro::Mat3 execution_covariance(const config::ObserverUplink::PlannedManeuver& m) {
+  const double s = m.execution_sigma_fraction * m.dv_rtn_mps.norm();
+  return astro::Mat3::Identity() * std::max(s * s, 1e-10);
+}
+
 double nominal_ballistic_m2pkg(const dynamics::SpacecraftProperties& sc = {}) {
   return sc.cd * sc.drag_area_m2 / sc.mass_kg;
 }
@@ -150,11 +158,8 @@ void Navigator::apply_planned_maneuvers(astro::TimeTT t) {
                           " not applied to SOD (no estimate at that epoch; the next GNSS fixes carry it)");
       continue;
     }
-    // Execution error: 1-sigma fraction of the magnitude along the delta-v
-    // and the same fraction (rad) of pointing error across it.
     const double s = m.execution_sigma_fraction * m.dv_rtn_mps.norm();
-    const astro::Mat3 P_dv = astro::Mat3::Identity() * std::max(s * s, 1e-10);
-    const sod::TimeUpdateSummary r = filter_->apply_observer_maneuver(m.t, m.dv_rtn_mps, P_dv);
+    const sod::TimeUpdateSummary r = filter_->apply_observer_maneuver(m.t, m.dv_rtn_mps, execution_covariance(m));
     char buf[240];
     std::snprintf(buf, sizeof buf, "planned maneuver at %s applied in SOD: dv_RTN [%.4f, %.4f, %.4f] m/s, execution 1-sigma %.4f m/s%s%s",
                   astro::utc_string(m.t, 0).c_str(), m.dv_rtn_mps[0], m.dv_rtn_mps[1], m.dv_rtn_mps[2], s,
@@ -1154,7 +1159,15 @@ const sod::SodFilter* Navigator::predicted_to(astro::TimeTT t, bool even_if_unus
   if (!filter_) return nullptr;
   if (!predicted_ || predicted_version_ != version_ || predicted_t_ != t) {
     predicted_.emplace(*filter_);
-    predicted_usable_ = !(predicted_->epoch() < t) || predicted_->time_update(t).usable;
+    predicted_usable_ = true;
+    // The planned maneuvers between the filter's epoch and t are part of the prediction.
+    for (std::size_t i = next_planned_; i < planned_.size() && !(t < planned_[i].t); ++i) {
+      const auto& m = planned_[i];
+      if (m.t < predicted_->epoch()) continue;
+      predicted_usable_ =
+          predicted_usable_ && predicted_->apply_observer_maneuver(m.t, m.dv_rtn_mps, execution_covariance(m)).usable;
+    }
+    predicted_usable_ = predicted_usable_ && (!(predicted_->epoch() < t) || predicted_->time_update(t).usable);
     predicted_version_ = version_;
     predicted_t_ = t;
   }

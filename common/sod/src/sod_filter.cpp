@@ -336,14 +336,9 @@ TimeUpdateSummary SodFilter::time_update(TimeTT t) {
     return s;
   }
   apply_aux_dynamics(X, Y, s.dt_s);
-  // Weighted mean about the central point (angles wrapped), then covariance.
-  VectorXd mean = Y.col(0);
-  for (int j = 1; j < m; ++j) mean += wm_[j] * state_difference(Y.col(j), Y.col(0));
-  MatrixXd P = MatrixXd::Zero(n, n);
-  for (int j = 0; j < m; ++j) {
-    const VectorXd d = state_difference(Y.col(j), mean);
-    P.noalias() += wc_[j] * d * d.transpose();
-  }
+  VectorXd mean;
+  MatrixXd P;
+  mean_and_covariance(Y, mean, P);
   P.diagonal() += q_ * std::abs(s.dt_s);
   if (!store(mean, P)) {
     s.why = "predicted covariance not positive definite (or state not finite)";
@@ -377,6 +372,18 @@ void SodFilter::apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) 
   for (int k = 0; k < layout_.n_targets; ++k) {
     const int ia = layout_.target_offset(k) + StateLayout::kDa, ib = layout_.ballistic_index(k);
     for (int j = 0; j < m; ++j) Y(ia, j) += rate * X(ib, j) * dt_s;
+  }
+}
+
+void SodFilter::mean_and_covariance(const MatrixXd& Y, VectorXd& mean, MatrixXd& P) const {
+  // Weighted mean about the central point (angles wrapped), then covariance.
+  const int n = static_cast<int>(Y.rows()), m = static_cast<int>(Y.cols());
+  mean = Y.col(0);
+  for (int j = 1; j < m; ++j) mean += wm_[j] * state_difference(Y.col(j), Y.col(0));
+  P = MatrixXd::Zero(n, n);
+  for (int j = 0; j < m; ++j) {
+    const VectorXd d = state_difference(Y.col(j), mean);
+    P.noalias() += wc_[j] * d * d.transpose();
   }
 }
 
@@ -634,13 +641,9 @@ TimeUpdateSummary SodFilter::apply_observer_maneuver(TimeTT t, const Vec3& dv_rt
   }
   MatrixXd Y(n, m);
   for (int j = 0; j < m; ++j) Y.col(j) = burn(X.col(j), dv_rtn_mps);
-  VectorXd mean = Y.col(0);
-  for (int j = 1; j < m; ++j) mean += wm_[j] * state_difference(Y.col(j), Y.col(0));
-  MatrixXd P = MatrixXd::Zero(n, n);
-  for (int j = 0; j < m; ++j) {
-    const VectorXd d = state_difference(Y.col(j), mean);
-    P.noalias() += wc_[j] * d * d.transpose();
-  }
+  VectorXd mean;
+  MatrixXd P;
+  mean_and_covariance(Y, mean, P);
   // Execution error: central differences of the map by the delta-v (1 mm/s).
   MatrixXd J(n, 3);
   for (int i = 0; i < 3; ++i) {

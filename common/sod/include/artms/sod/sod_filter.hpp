@@ -346,6 +346,9 @@ class SodFilter {
   // Dynamics of the named auxiliary states over dt on propagated sigma points
   // Y (columns of X before the step): time-tag drift, differential drag.
   void apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) const;
+  // Unscented mean (about the central point, angles wrapped) and covariance of
+  // the transformed sigma points Y.
+  void mean_and_covariance(const MatrixXd& Y, VectorXd& mean, MatrixXd& P) const;
 
   dynamics::GveRk4Propagator observer_prop_;
   dynamics::GveRk4Propagator target_prop_;
