@@ -90,6 +90,8 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   o.q_target_a_roe_m2ps *= t.process_noise_scale;
   o.health.nis_window = t.nis_window;
   if (t.nis_window > 0) o.health.nis_max_mean = sod::chi2_quantile(2 * t.nis_window, 1.0 - t.nis_false_alarm) / t.nis_window;
+  o.health.gnss_nis_window = t.nis_window > 0 ? 10 : 0;
+  o.health.gnss_nis_max_mean = sod::chi2_quantile(6 * 10, 1.0 - t.nis_false_alarm) / 10.0;
   // Auxiliary random walks: the offset wanders by 1 ms and the drift by 1 ppm
   // per day; a target's effective ballistic coefficient (the density's
   // day-to-day error times Cd A/m) by its initial 1-sigma per day.
@@ -685,7 +687,30 @@ bool Navigator::blended(sod::SodFilter& f, int k, astro::TimeTT t) {
 
 void Navigator::check_health() {
   auto& f = *filter_;
-  const sod::HealthReport h = f.health();
+  sod::HealthReport h = f.health();
+  if (h.filter.condition == sod::HealthCondition::kInconsistent && !reinit_pending_) {
+    // The observer's GNSS fixes no longer fit its orbit: it manoeuvred
+    // without a plan (or its model failed). Its own block and every target's
+    // ROE (relative to it) get the covariance of an unknown burn through the
+    // same map as a planned one, so that the fixes correct both; every target
+    // is suspect until BOD agrees.
+    const double nis = f.recent_mean_gnss_nis();
+    const double sigma_dv = maneuver_sigma_mps(nis / 3.0);
+    const auto r = f.apply_observer_maneuver(f.epoch(), astro::Vec3::Zero(), astro::Mat3::Identity() * sigma_dv * sigma_dv);
+    f.clear_gnss_nis();
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "SOD: the observer's orbit does not fit its GNSS fixes (%s): an unplanned maneuver or a model "
+                  "error; observer and targets inflated by an unknown maneuver of %.3g m/s (1-sigma per axis)%s",
+                  h.filter.reason.c_str(), sigma_dv, r.usable ? "" : " (NOT applied)");
+    messages_.push_back(buf);
+    for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+      if (!has_estimate_[k]) continue;
+      suspect_[k] = false;
+      set_suspect(static_cast<int>(k), true, "its observer manoeuvred without a plan (GNSS consistency)");
+    }
+    h = f.health();
+  }
   if (!h.filter.healthy() && !reinit_pending_ &&
       (h.filter.condition == sod::HealthCondition::kNoMeasurementUpdate ||
        h.filter.condition == sod::HealthCondition::kOutOfRange)) {

@@ -69,6 +69,9 @@ void SodOptions::validate() const {
   require(health.nis_window >= 0, "health.nis_window", "must be >= 0 (0 disables)");
   require(std::isfinite(health.nis_max_mean) && health.nis_max_mean > 0.0, "health.nis_max_mean",
           "must be finite and > 0");
+  require(health.gnss_nis_window >= 0, "health.gnss_nis_window", "must be >= 0 (0 disables)");
+  require(std::isfinite(health.gnss_nis_max_mean) && health.gnss_nis_max_mean > 0.0, "health.gnss_nis_max_mean",
+          "must be finite and > 0");
   require(adaptive.forgetting > 0.0 && adaptive.forgetting < 1.0, "adaptive.forgetting",
           "must be in (0, 1)");
   require(std::isfinite(adaptive.floor_factor) && adaptive.floor_factor >= 0.0 &&
@@ -178,6 +181,7 @@ SodFilter::SodFilter(const dynamics::ForceModel& forces,
   recent_nis_.assign(layout_.n_targets, std::vector<double>(static_cast<std::size_t>(options_.health.nis_window), 0.0));
   recent_nis_t_.assign(layout_.n_targets, std::vector<TimeTT>(static_cast<std::size_t>(options_.health.nis_window)));
   recent_nis_count_.assign(layout_.n_targets, 0);
+  gnss_nis_.assign(static_cast<std::size_t>(options_.health.gnss_nis_window), 0.0);
 }
 
 VectorXd SodFilter::make_state(const QnsElements& observer, const std::vector<Roe>& roe,
@@ -229,6 +233,7 @@ void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
   consecutive_large_gnss_ = 0;
   rejected_total_ = 0;
   recent_nis_count_.assign(layout_.n_targets, 0);
+  gnss_nis_count_ = 0;
   initialized_ = true;
 }
 
@@ -459,6 +464,10 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
     ring[static_cast<std::size_t>(count % options_.health.nis_window)] = s.nis;
     recent_nis_t_[static_cast<std::size_t>(target)][static_cast<std::size_t>(count % options_.health.nis_window)] = t_;
     ++count;
+  }
+  if (target < 0 && options_.health.gnss_nis_window > 0) {
+    gnss_nis_[static_cast<std::size_t>(gnss_nis_count_ % options_.health.gnss_nis_window)] = s.nis;
+    ++gnss_nis_count_;
   }
   // Health check (3): successive large pre-fit residuals (gated ones included).
   int& large = target >= 0 ? counters_[target].consecutive_large_residuals : consecutive_large_gnss_;
@@ -731,6 +740,11 @@ HealthReport SodFilter::health() const {
   } else if (consecutive_large_gnss_ > h.max_large_residuals) {
     r.filter = {HealthCondition::kLargeResiduals,
                 std::to_string(consecutive_large_gnss_) + " successive large GNSS residuals"};
+  } else if (const double nis = recent_mean_gnss_nis(); std::isfinite(nis) && nis > h.gnss_nis_max_mean) {
+    std::ostringstream why;
+    why.precision(3);
+    why << "mean NIS " << nis << " of the last " << h.gnss_nis_window << " GNSS fixes above " << h.gnss_nis_max_mean;
+    r.filter = {HealthCondition::kInconsistent, why.str()};
   }
   for (int k = 0; k < layout_.n_targets; ++k) {
     const Vec6 a_roe = a * x_.segment<6>(layout_.target_offset(k));
@@ -826,6 +840,16 @@ void SodFilter::inflate_auxiliary(int index, double add_variance) {
     throw std::invalid_argument("SodFilter::inflate_auxiliary: variance must be finite and >= 0");
   P_(index, index) += add_variance;
 }
+
+double SodFilter::recent_mean_gnss_nis() const {
+  const int w = options_.health.gnss_nis_window;
+  if (w <= 0 || gnss_nis_count_ < w) return kNaN;
+  double sum = 0.0;
+  for (double v : gnss_nis_) sum += v;
+  return sum / w;
+}
+
+void SodFilter::clear_gnss_nis() { gnss_nis_count_ = 0; }
 
 double SodFilter::recent_nis_span_s(int target) const {
   const int w = options_.health.nis_window;

@@ -248,6 +248,7 @@ TEST(SodAuxiliary, DifferentialBallisticCoefficientIsEstimated) {
 // and no bearing is gated; without it, the targets' ROE (relative to the
 // observer that moved) end far outside their covariance.
 TEST(SodManeuver, PlannedObserverBurnKeepsTheTargetsConsistent) {
+  constexpr int burn_step = 300;
   const auto run = [](bool apply) {
     const astro::QnsElements obs0 = testing::observer_at_start();
     std::vector<Vec6> a_roe = testing::starling_a_roe_m();
@@ -259,8 +260,8 @@ TEST(SodManeuver, PlannedObserverBurnKeepsTheTargetsConsistent) {
     std::mt19937_64 rng(5);
     const double sigma = 5.0 * astro::kArcsecToRad;
     const Vec3 dv(0.0, 0.1, 0.0);
-    const int burn_step = 300, steps = 500;
-    int gated_after = 0;
+    const int steps = 500;
+    int gated_after = 0, gnss_flag_step = -1;
     for (int s = 1; s <= steps; ++s) {
       const TimeTT t = kT0.plus_seconds(kStep_s * s);
       if (s == burn_step) {
@@ -277,20 +278,26 @@ TEST(SodManeuver, PlannedObserverBurnKeepsTheTargetsConsistent) {
         const UpdateSummary u = filter.update_bearing(truth.bearing(k, sigma, sigma, &rng));
         if (s >= burn_step && u.gated) ++gated_after;
       }
+      if (gnss_flag_step < 0 && filter.health().filter.condition == HealthCondition::kInconsistent) gnss_flag_step = s;
     }
     double worst = 0.0;
     for (int k = 0; k < 2; ++k) {
       const Vec6 e = filter.a_roe_m(k) - truth.a_roe_m(k), sg = filter.a_roe_sigma_m(k);
       for (int i = 0; i < 6; ++i) worst = std::max(worst, std::abs(e[i]) / sg[i]);
     }
-    std::printf("%s: worst |error| / sigma %.2f, %d bearings gated after the burn\n",
-                apply ? "applied" : "not applied", worst, gated_after);
-    return std::make_pair(worst, gated_after);
+    std::printf("%s: worst |error| / sigma %.2f, %d bearings gated after the burn, GNSS window flagged at step %d\n",
+                apply ? "applied" : "not applied", worst, gated_after, gnss_flag_step);
+    return std::make_tuple(worst, gated_after, gnss_flag_step);
   };
-  const auto with = run(true), without = run(false);
-  EXPECT_LT(with.first, 3.0);
-  EXPECT_EQ(with.second, 0);
-  EXPECT_GT(without.first, 5.0);
+  const auto [worst_with, gated_with, flag_with] = run(true);
+  const auto [worst_without, gated_without, flag_without] = run(false);
+  EXPECT_LT(worst_with, 3.0);
+  EXPECT_EQ(gated_with, 0);
+  EXPECT_EQ(flag_with, -1);  // no false alarm of the GNSS window
+  EXPECT_GT(worst_without, 5.0);
+  // Unplanned, the burn shows in the GNSS fixes within 20 minutes (health check 5, filter level).
+  EXPECT_GE(flag_without, burn_step);
+  EXPECT_LE(flag_without, burn_step + 20);
 }
 
 }  // namespace

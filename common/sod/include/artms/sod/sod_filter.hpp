@@ -78,6 +78,11 @@ struct HealthOptions {
   // that target (a manoeuvre, a model error, a wrong time tag). 0 disables.
   int nis_window = 20;
   double nis_max_mean = 4.0;
+  // The same for the observer: the mean NIS of the last gnss_nis_window GNSS
+  // fixes (6 dof each) above gnss_nis_max_mean (chi2(6 W)/W quantile): the
+  // observer's orbit left its model (an unplanned maneuver). 0 disables.
+  int gnss_nis_window = 10;
+  double gnss_nis_max_mean = 10.1;
 };
 
 struct SodOptions {
@@ -293,6 +298,10 @@ class SodFilter {
   // Throws std::invalid_argument for an index outside the auxiliary block or
   // a variance that is not finite and >= 0.
   void inflate_auxiliary(int index, double add_variance);
+  // Mean NIS of the last health.gnss_nis_window GNSS fixes (NaN until full),
+  // and clearing that window (after the navigator answered check 5).
+  [[nodiscard]] double recent_mean_gnss_nis() const;
+  void clear_gnss_nis();
   // Time span of the target's NIS window (s; NaN until full).
   [[nodiscard]] double recent_nis_span_s(int target) const;
   // Mean NIS of the target's last health.nis_window bearings (NaN until full).
@@ -372,6 +381,8 @@ class SodFilter {
   std::vector<std::vector<double>> recent_nis_;  // ring buffers, health.nis_window each
   std::vector<std::vector<TimeTT>> recent_nis_t_;
   std::vector<int> recent_nis_count_;
+  std::vector<double> gnss_nis_;
+  int gnss_nis_count_ = 0;
   std::vector<HealthStatus> bod_status_;
   std::vector<std::optional<BodEstimate>> last_bod_;
   int steps_without_update_ = 0;
