@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Issue 17: the world sweep (tools/artms_swarm/world_sweep.py). Its unit test
 # (edits, YAML, health events, the verdict on made-up run folders), then on
-# starling_pse_flight.yaml: --dry-run writes and validates all 10 variants; a
+# starling_pse_flight.yaml: --dry-run writes and validates all 13 variants; a
 # sweep of two cases x 0.3 orbits, 2 at a time, gives one row per case and
 # target with a PASS/FAIL verdict (world_sweep.md, world_sweep.json); the same
 # call again reuses both run folders and gives the same bytes.
@@ -16,8 +16,8 @@ BASE="$SRC/config/swarms/starling_pse_flight.yaml"
 
 "$PY" "$SWEEP" --base "$BASE" --bin "$BIN" --dry-run --out "$WORK/dry" > "$WORK/dry.out" 2> "$WORK/dry.err" \
   || { echo "FAIL: --dry-run exit $?"; cat "$WORK/dry.out" "$WORK/dry.err"; exit 1; }
-[ "$(ls "$WORK"/dry/*.yaml | wc -l)" = 10 ] || { echo "FAIL: not 10 variants"; ls "$WORK/dry"; exit 1; }
-grep -q "^10 of 10 variants valid" "$WORK/dry.out" || { echo "FAIL: variants"; cat "$WORK/dry.out" "$WORK/dry.err"; exit 1; }
+[ "$(ls "$WORK"/dry/*.yaml | wc -l)" = 13 ] || { echo "FAIL: not 13 variants"; ls "$WORK/dry"; exit 1; }
+grep -q "^13 of 13 variants valid" "$WORK/dry.out" || { echo "FAIL: variants"; cat "$WORK/dry.out" "$WORK/dry.err"; exit 1; }
 
 sweep() {  # sweep NAME: stdout/stderr in $WORK/NAME.out/.err
   "$PY" "$SWEEP" --base "$BASE" --bin "$BIN" --cases flight,tag_plus_0.05 --orbits 0.3 --settle-orbits 0.1 \
