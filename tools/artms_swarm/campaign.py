@@ -60,10 +60,10 @@ NIS_MISSING = ("NIS is not recorded in these run folders (nav/targets.csv has no
 _SAY = threading.Lock()
 
 
-def say(msg):
-    """A progress line on stderr (whole lines, also from worker threads)."""
+def say(msg, tool="campaign"):
+    """A progress line on stderr (whole lines, also from worker threads), prefixed with the tool's name."""
     with _SAY:
-        sys.stderr.write(f"campaign: {msg}\n")
+        sys.stderr.write(f"{tool}: {msg}\n")
         sys.stderr.flush()
 
 

@@ -49,7 +49,6 @@ import re
 import shutil
 import subprocess
 import sys
-import threading
 
 HERE = os.path.dirname(os.path.realpath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
@@ -57,7 +56,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "python"))
 sys.path.insert(0, HERE)
 from artms_tools.oem import tt_ns_from_utc  # noqa: E402
 from artms_tools.runfolder import RunFolderError, read_csv, read_summary  # noqa: E402
-from campaign import reuse_verdict, run_seed  # noqa: E402  (one run = one campaign seed, same record)
+from campaign import reuse_verdict, run_seed, say as campaign_say  # noqa: E402  (one run = one campaign seed, same record)
 
 
 # ---------------------------------------------------------------- the cases
@@ -529,13 +528,8 @@ RULE = ("PASS if every ROE ends within 3 sigma, or a health event for the target
 
 # ---------------------------------------------------------------- main
 
-_SAY = threading.Lock()
-
-
 def say(msg):
-    with _SAY:
-        sys.stderr.write(f"world_sweep: {msg}\n")
-        sys.stderr.flush()
+    campaign_say(msg, "world_sweep")
 
 
 def parse_args(argv):
