@@ -46,7 +46,7 @@ import threading
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "python"))
-from artms_tools.runfolder import RunFolderError, read_summary, target_nees, target_nis  # noqa: E402
+from artms_tools.runfolder import RunFolderError, observer_nees, read_summary, target_nees, target_nis  # noqa: E402
 
 RECORD = "campaign_run.json"
 TAIL_LINES = 20
@@ -426,6 +426,7 @@ def main(argv=None):
         json.dump(timing, f, indent=1)
         f.write("\n")
     print_table(summary, out)
+    print_absolute(summary)
     return 1 if failed else 0
 
 
@@ -527,7 +528,63 @@ def summarise(out, seeds, meta, failures):
         plot_errors(out, obs, tgt, seeds, tg)
         plot_initial_errors(out, obs, tgt, tg)
         out_json["targets"][f"{obs}/{tgt}"] = entry
+    out_json["absolute"] = absolute_entries(out, seeds, meta, period or 5700.0)
     return out_json
+
+
+def absolute_entries(out, seeds, meta, period_s):
+    """Each observer's absolute orbit over the runs (navigation mode 4 above all): the average position NEES
+    (3 dof) against its 95 % band chi2(3R)/R from `absolute_after_hours` on (default 6 h, issue 18), and the
+    final position errors (median, max) from summary.json."""
+    import numpy as np
+    from scipy.stats import chi2
+    runs, finals = {}, {}
+    for s in seeds:
+        d = os.path.join(out, f"seed_{s}")
+        for obs, v in observer_nees(d).items():
+            runs.setdefault(obs, []).append(v)
+        for obs, o in read_summary(d).get("observers", {}).items():
+            a = o.get("absolute", {})
+            if a.get("final_pos_error_m") is not None:
+                finals.setdefault(obs, []).append((a["final_pos_error_m"], a.get("initial_position_error_m"),
+                                                   a.get("angles_only_fraction")))
+    after_h = meta.get("absolute_after_hours", 6.0)
+    entries = {}
+    for obs, rs in sorted(runs.items()):
+        R = len(rs)
+        times = sorted(set.intersection(*[set(r) for r in rs]))
+        if not times:
+            continue
+        M = np.array([[r[t] for t in times] for r in rs])
+        h = (np.array(times) - times[0]) * 1e-9 / 3600.0
+        avg = np.nanmean(M, axis=0) if np.isfinite(M).any() else np.full(len(times), np.nan)
+        lo, hi = chi2.ppf(0.025, 3 * R) / R, chi2.ppf(0.975, 3 * R) / R
+        sel = (h >= after_h) & np.isfinite(avg)
+        inside = (avg >= lo) & (avg <= hi)
+        f = finals.get(obs, [])
+        entries[obs] = {
+            "runs": R, "band_95": [float(lo), float(hi)], "after_hours": after_h, "steps": int(sel.sum()),
+            "frac_inside_band": float(np.mean(inside[sel])) if sel.any() else None,
+            "mean_nees_after": float(np.mean(avg[sel])) if sel.any() else None,
+            "frac_above_band": float(np.mean(avg[sel] > hi)) if sel.any() else None,
+            "final_position_error_m": _stats([x[0] for x in f]),
+            "initial_position_error_m": _stats([x[1] for x in f]),
+            "angles_only_fraction": _stats([x[2] for x in f]),
+        }
+        plt = _plt()
+        plt.figure(figsize=(8, 3.5))
+        plt.plot(h, avg, lw=0.8, label=f"average of {R} runs")
+        plt.axhspan(lo, hi, color="tab:green", alpha=0.25, label=f"95 % band [{lo:.2f}, {hi:.2f}]")
+        plt.axvline(after_h, color="k", ls=":", lw=0.8)
+        plt.yscale("log")
+        plt.xlabel("hours")
+        plt.ylabel("position NEES (3 dof)")
+        plt.title(f"{obs}: absolute position NEES")
+        plt.legend(fontsize=8)
+        plt.tight_layout()
+        plt.savefig(os.path.join(out, f"absolute_nees_{_safe(obs)}.png"), dpi=110)
+        plt.close()
+    return entries
 
 
 def initialisation_entry(seeds, tg, within_orbits):
@@ -662,6 +719,17 @@ def plot_errors(out, obs, tgt, seeds, tg):
     fig.tight_layout()
     fig.savefig(os.path.join(out, f"campaign_error_{_safe(obs)}_{_safe(tgt)}.png"), dpi=120)
     plt.close(fig)
+
+
+def print_absolute(s):
+    for obs, a in s.get("absolute", {}).items():
+        fe = a.get("final_position_error_m") or {}
+        fr = a.get("frac_inside_band")
+        print(f"absolute {obs}: position NEES after {a['after_hours']:g} h: mean "
+              f"{a['mean_nees_after'] if a['mean_nees_after'] is None else round(a['mean_nees_after'], 2)}, "
+              f"inside [{a['band_95'][0]:.2f}, {a['band_95'][1]:.2f}] on "
+              f"{'-' if fr is None else f'{100 * fr:.1f} %'} of steps; final position error median "
+              f"{fe.get('median')}, max {fe.get('max')} m")
 
 
 def print_table(s, out):

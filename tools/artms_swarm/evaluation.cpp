@@ -1,6 +1,7 @@
 #include "evaluation.hpp"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -41,6 +42,12 @@ struct Row {
   long health = 0;  // the target's own health (nav/targets.csv health; 0 healthy, 1 suspect)
 };
 
+std::string fixed(double v, int decimals) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
 constexpr const char* kRoeNames[6] = {"da", "dlambda", "dex", "dey", "dix", "diy"};
 
 }  // namespace
@@ -59,37 +66,158 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     return;
   }
   fs::create_directories(dir / "eval");
-  // Observers: absolute position/velocity errors.
+  // Observers: absolute position/velocity errors, in ECI norms and in the
+  // true orbit's RTN axes, and the quasi-nonsingular elements' errors times
+  // a (the paper's mode-4 figure), each with its 1-sigma; NEES of the
+  // position (3 dof) where the full covariance is recorded.
   {
     std::ofstream out(dir / "eval" / "observers.csv");
-    out << "t_utc,t_tt_ns,observer,mode,source,pos_err_m,vel_err_mps,sigma_pos_m,sigma_vel_mps\n";
+    out << "t_utc,t_tt_ns,observer,mode,source,pos_err_m,vel_err_mps,sigma_pos_m,sigma_vel_mps,"
+           "err_r_m,err_t_m,err_n_m,sigma_r_m,sigma_t_m,sigma_n_m,err_vr_mps,err_vt_mps,err_vn_mps,"
+           "sigma_vr_mps,sigma_vt_mps,sigma_vn_mps,err_a_da_m,err_a_du_m,err_a_dex_m,err_a_dey_m,err_a_di_m,"
+           "err_a_draan_m,sigma_a_da_m,sigma_a_du_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_di_m,sigma_a_draan_m,"
+           "nees_pos\n";
     for (const auto& o : sc.observers) {
       summary["observers"][o.spacecraft]["period_s"] = period_s;
       const fs::path path = dir / "nav" / (o.spacecraft + ".csv");
       if (!fs::exists(path)) continue;
+      struct Abs {
+        std::vector<double> t_s, pos, sig_pos, nees;
+        std::vector<astro::Vec3> e_rtn, s_rtn;
+        std::vector<astro::Vec6> e_oe, s_oe;
+        std::vector<int> source;
+      } a;
       try {
         const auto nav = io::CsvTable::read(path.string());
+        const bool full = nav.has("covariance_upper");
         for (std::size_t k = 0; k < nav.size(); ++k) {
           if (nav.text(k, "health") == "2") continue;
           const std::int64_t t = nav.integer(k, "t_tt_ns");
           const auto it = truth[o.spacecraft].find(t);
           if (it == truth[o.spacecraft].end()) continue;
-          const astro::Vec3 r(nav.number(k, "x_m"), nav.number(k, "y_m"), nav.number(k, "z_m"));
-          const astro::Vec3 v(nav.number(k, "vx_mps"), nav.number(k, "vy_mps"), nav.number(k, "vz_mps"));
-          const double sr = std::sqrt(std::pow(nav.number(k, "sigma_x_m"), 2) + std::pow(nav.number(k, "sigma_y_m"), 2) +
-                                      std::pow(nav.number(k, "sigma_z_m"), 2));
-          const double sv = std::sqrt(std::pow(nav.number(k, "sigma_vx_mps"), 2) +
-                                      std::pow(nav.number(k, "sigma_vy_mps"), 2) +
-                                      std::pow(nav.number(k, "sigma_vz_mps"), 2));
+          const astro::StateVector& xt = it->second;
+          astro::StateVector x;
+          x.r_m = astro::Vec3(nav.number(k, "x_m"), nav.number(k, "y_m"), nav.number(k, "z_m"));
+          x.v_mps = astro::Vec3(nav.number(k, "vx_mps"), nav.number(k, "vy_mps"), nav.number(k, "vz_mps"));
+          astro::Mat6 P = astro::Mat6::Zero();
+          if (full) {
+            const auto v = io::split_fields(nav.text(k, "covariance_upper"), ' ');
+            if (v.size() != 21) {
+              throw std::runtime_error(nav.path() + ":" + std::to_string(nav.line(k)) + ": covariance_upper has " +
+                                       std::to_string(v.size()) + " entries, expected 21");
+            }
+            std::size_t n = 0;
+            for (int r = 0; r < 6; ++r) {
+              for (int c = r; c < 6; ++c) P(r, c) = P(c, r) = std::stod(v[n++]);
+            }
+          } else {
+            const char* names[6] = {"sigma_x_m", "sigma_y_m", "sigma_z_m", "sigma_vx_mps", "sigma_vy_mps", "sigma_vz_mps"};
+            for (int i = 0; i < 6; ++i) P(i, i) = std::pow(nav.number(k, names[i]), 2);
+          }
+          const astro::Vec3 dr = x.r_m - xt.r_m, dv = x.v_mps - xt.v_mps;
+          // RTN axes of the true orbit.
+          astro::Mat3 R;
+          R.row(0) = xt.r_m.normalized();
+          R.row(2) = xt.r_m.cross(xt.v_mps).normalized();
+          R.row(1) = R.row(2).cross(R.row(0));
+          const astro::Mat3 Pr = R * P.topLeftCorner<3, 3>() * R.transpose();
+          const astro::Mat3 Pv = R * P.bottomRightCorner<3, 3>() * R.transpose();
+          const astro::Vec3 e_rtn = R * dr, e_vrtn = R * dv;
+          const astro::Vec3 s_rtn = Pr.diagonal().cwiseMax(0.0).cwiseSqrt();
+          const astro::Vec3 s_vrtn = Pv.diagonal().cwiseMax(0.0).cwiseSqrt();
+          // Elements (a, u, ex, ey, i, RAAN) of estimate and truth; errors times a.
+          const astro::QnsElements qe = astro::qns_from_cartesian(x), qt = astro::qns_from_cartesian(xt);
+          astro::Vec6 e_oe;
+          e_oe << qe.a_m - qt.a_m, std::remainder(qe.u_rad - qt.u_rad, 2.0 * M_PI) * qt.a_m, (qe.ex - qt.ex) * qt.a_m,
+              (qe.ey - qt.ey) * qt.a_m, (qe.i_rad - qt.i_rad) * qt.a_m,
+              std::remainder(qe.raan_rad - qt.raan_rad, 2.0 * M_PI) * qt.a_m;
+          const astro::Mat6 J = astro::jacobian_qns_from_cartesian(x);  // rows: a, ex, ey, i, RAAN, u
+          const astro::Vec6 var_q = (J * P * J.transpose()).diagonal().cwiseMax(0.0);
+          astro::Vec6 s_oe;
+          s_oe << std::sqrt(var_q[0]), std::sqrt(var_q[5]) * qt.a_m, std::sqrt(var_q[1]) * qt.a_m,
+              std::sqrt(var_q[2]) * qt.a_m, std::sqrt(var_q[3]) * qt.a_m, std::sqrt(var_q[4]) * qt.a_m;
+          double nees = std::nan("");
+          if (full) {
+            const Eigen::LDLT<astro::Mat3> ldlt(P.topLeftCorner<3, 3>());
+            if (ldlt.info() == Eigen::Success && ldlt.isPositive()) nees = dr.dot(ldlt.solve(dr));
+          }
+          const double sr = std::sqrt(std::max(0.0, P.topLeftCorner<3, 3>().trace()));
+          const double sv = std::sqrt(std::max(0.0, P.bottomRightCorner<3, 3>().trace()));
           char buf[320];
-          std::snprintf(buf, sizeof buf, "%s,%lld,%s,%s,%s,%.3f,%.6f,%.3f,%.6f\n", nav.text(k, "t_utc").c_str(),
+          std::snprintf(buf, sizeof buf, "%s,%lld,%s,%s,%s,%.3f,%.6f,%.3f,%.6f", nav.text(k, "t_utc").c_str(),
                         static_cast<long long>(t), o.spacecraft.c_str(), nav.text(k, "mode").c_str(),
-                        nav.text(k, "source").c_str(), (r - it->second.r_m).norm(), (v - it->second.v_mps).norm(), sr, sv);
+                        nav.text(k, "source").c_str(), dr.norm(), dv.norm(), sr, sv);
           out << buf;
+          for (const astro::Vec3* v : {&e_rtn, &s_rtn}) {
+            for (int i = 0; i < 3; ++i) out << "," << fixed((*v)[i], 3);
+          }
+          for (const astro::Vec3* v : {&e_vrtn, &s_vrtn}) {
+            for (int i = 0; i < 3; ++i) out << "," << fixed((*v)[i], 6);
+          }
+          for (const astro::Vec6* v : {&e_oe, &s_oe}) {
+            for (int i = 0; i < 6; ++i) out << "," << fixed((*v)[i], 3);
+          }
+          std::snprintf(buf, sizeof buf, ",%.4f\n", nees);
+          out << buf;
+          a.t_s.push_back(static_cast<double>(t - sc.epoch.ns_since_j2000) * 1e-9);
+          a.pos.push_back(dr.norm());
+          a.sig_pos.push_back(sr);
+          a.nees.push_back(nees);
+          a.e_rtn.push_back(e_rtn);
+          a.s_rtn.push_back(s_rtn);
+          a.e_oe.push_back(e_oe);
+          a.s_oe.push_back(s_oe);
+          a.source.push_back(static_cast<int>(nav.integer(k, "source")));
         }
       } catch (const std::exception& e) {
         report_error(summary, e.what());
+        continue;
       }
+      const std::size_t n = a.t_s.size();
+      if (n == 0) continue;
+      // The absolute orbit at a glance: first and final errors, how often
+      // an RTN component was beyond 3 and 5 sigma, the mean position NEES.
+      nlohmann::json j;
+      j["initial_position_error_m"] = a.pos.front();
+      j["initial_position_sigma_m"] = a.sig_pos.front();
+      j["final_error_rtn_m"] = std::vector<double>(a.e_rtn.back().data(), a.e_rtn.back().data() + 3);
+      j["final_sigma_rtn_m"] = std::vector<double>(a.s_rtn.back().data(), a.s_rtn.back().data() + 3);
+      j["final_error_a_oe_m"] = std::vector<double>(a.e_oe.back().data(), a.e_oe.back().data() + 6);
+      j["final_sigma_a_oe_m"] = std::vector<double>(a.s_oe.back().data(), a.s_oe.back().data() + 6);
+      j["a_oe_names"] = {"a", "u", "ex", "ey", "i", "raan"};
+      j["angles_only_fraction"] =
+          static_cast<double>(std::count(a.source.begin(), a.source.end(), 4)) / static_cast<double>(n);
+      double max_ratio = 0.0;
+      for (std::size_t m = 0; m < n; ++m) {
+        for (int i = 0; i < 3; ++i) {
+          if (a.s_rtn[m][i] > 0.0) max_ratio = std::max(max_ratio, std::abs(a.e_rtn[m][i]) / a.s_rtn[m][i]);
+        }
+      }
+      j["max_rtn_error_over_sigma"] = max_ratio;
+      for (const double n_sigma : {3.0, 5.0}) {
+        std::size_t beyond = 0, run = 0, longest = 0;
+        for (std::size_t m = 0; m < n; ++m) {
+          bool outside = false;
+          for (int i = 0; i < 3; ++i) outside = outside || std::abs(a.e_rtn[m][i]) > n_sigma * a.s_rtn[m][i];
+          beyond += outside ? 1 : 0;
+          run = outside ? run + 1 : 0;
+          longest = std::max(longest, run);
+        }
+        const std::string tag = n_sigma == 3.0 ? "3sigma" : "5sigma";
+        const double step_s = n > 1 ? (a.t_s.back() - a.t_s.front()) / static_cast<double>(n - 1) : 0.0;
+        j["frac_rtn_beyond_" + tag] = static_cast<double>(beyond) / static_cast<double>(n);
+        j["longest_rtn_beyond_" + tag + "_orbits"] = static_cast<double>(longest) * step_s / period_s;
+      }
+      double nees_sum = 0.0;
+      std::size_t nees_n = 0;
+      for (double v : a.nees) {
+        if (!std::isfinite(v)) continue;
+        nees_sum += v;
+        ++nees_n;
+      }
+      j["nees_pos_mean"] = nees_n ? nlohmann::json(nees_sum / static_cast<double>(nees_n)) : nlohmann::json(nullptr);
+      // Added to the launcher's final_pos_error_m / final_pos_sigma_m (DESIGN.md).
+      for (const auto& [key, value] : j.items()) summary["observers"][o.spacecraft]["absolute"][key] = value;
     }
   }
   // Targets.

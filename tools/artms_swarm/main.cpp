@@ -70,6 +70,21 @@ void add_ground_apriori(const artms::config::Scenario& sc, const artms::config::
   }
 }
 
+// Navigation mode 4: the coarse ground orbit of the observer (paper,
+// "Absolute Navigation": "artificially degraded orbit knowledge"): its true
+// initial orbit displaced by an error drawn from o.coarse_orbit_sigma_a_roe_m
+// (seeded by the run seed and the observer id, a stream apart from the
+// a-priori's), uplinked with that covariance.
+void add_coarse_orbit(const artms::config::Scenario& sc, const artms::config::ObserverConfig& o,
+                      artms::config::ObserverUplink& up) {
+  using namespace artms;
+  std::uint64_t h = (sc.seed + 0x51ED270B2A7C1F3DULL) * 0x9E3779B97F4A7C15ULL;
+  for (char c : o.spacecraft) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001B3ULL;
+  std::mt19937_64 rng(h);
+  const sod::CoarseOrbit c = sod::draw_coarse_orbit(sc.initial_state_eci(o.spacecraft), o.coarse_orbit_sigma_a_roe_m, rng);
+  up.coarse_orbit = config::ObserverUplink::CoarseOrbit{sc.epoch, c.x_eci, c.P_rv};
+}
+
 void write_onboard_star_catalog(const std::filesystem::path& path, artms::astro::TimeTT epoch) {
   const auto bsc = artms::imaging::StarCatalog::load_bsc5(artms::io::data_dir() + "/stars/bsc5.dat", 6.5);
   std::ofstream out(path);
@@ -347,7 +362,8 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
     config::ObserverUplink up = config::make_uplink(sc, o.spacecraft);
     up.camera_calibration = render::calibration_of_model(o.camera.model);
     up.star_catalog_file = "star_catalog.csv";
-    if (o.mode == 1 || o.mode == 3) add_ground_apriori(sc, o, up);
+    if (o.mode == 1 || o.mode == 3 || o.mode == 4) add_ground_apriori(sc, o, up);
+    if (o.mode == 4) add_coarse_orbit(sc, o, up);
     config::write_uplink(up, (dir / "uplink" / (o.spacecraft + ".json")).string());
   }
   struct sigaction sa{};

@@ -72,7 +72,7 @@ constexpr std::int64_t kHalfDay_ns = kNanosPerDay / 2;
 
 // "Uniform UTC" nanoseconds since 2000-01-01T12:00 counting every day as
 // 86400 s; adding TAI-UTC and TT-TAI gives TT.
-std::int64_t naive_utc_ns(std::int64_t days_since_1970, std::int64_t ns_of_day) {
+constexpr std::int64_t naive_utc_ns(std::int64_t days_since_1970, std::int64_t ns_of_day) {
   return (days_since_1970 - kDaysTo2000) * kNanosPerDay + ns_of_day - kHalfDay_ns;
 }
 
@@ -108,16 +108,32 @@ double seconds_between(TimeTT a, TimeTT b) {
   return static_cast<double>(b.ns_since_j2000 - a.ns_since_j2000) * 1e-9;
 }
 
+// The table's start days (since 1970) and start instants (TAI ns since
+// J2000), computed once: the force model asks for UTC at every evaluation.
+struct LeapStart {
+  std::int64_t day;
+  std::int64_t tai_ns;
+};
+constexpr std::array<LeapStart, kLeapSeconds.size()> leap_starts() {
+  std::array<LeapStart, kLeapSeconds.size()> out{};
+  for (std::size_t k = 0; k < kLeapSeconds.size(); ++k) {
+    const auto& e = kLeapSeconds[k];
+    const std::int64_t d = days_from_civil(e.year, e.month, e.day);
+    out[k] = {d, naive_utc_ns(d, 0) + e.tai_minus_utc_s * kNanosPerSecond};
+  }
+  return out;
+}
+constexpr std::array<LeapStart, kLeapSeconds.size()> kLeapStarts = leap_starts();
+
 int tai_minus_utc_s(int year, int month, int day) {
   const std::int64_t d = days_from_civil(year, month, day);
-  if (d < days_from_civil(1972, 1, 1)) {
+  if (d < kLeapStarts.front().day) {
     throw std::out_of_range("UTC dates before 1972-01-01 are not supported (leap-second table)");
   }
-  int value = kLeapSeconds.front().tai_minus_utc_s;
-  for (const auto& e : kLeapSeconds) {
-    if (d >= days_from_civil(e.year, e.month, e.day)) value = e.tai_minus_utc_s;
+  for (std::size_t k = kLeapStarts.size(); k-- > 0;) {
+    if (d >= kLeapStarts[k].day) return kLeapSeconds[k].tai_minus_utc_s;
   }
-  return value;
+  return kLeapSeconds.front().tai_minus_utc_s;
 }
 
 TimeTT tt_from_utc(const UtcCalendar& utc) {
@@ -135,18 +151,12 @@ UtcCalendar utc_from_tt(TimeTT t) {
   // Find the table entry in force: the last whose start instant (in TAI) is <= tai.
   int offset_s = -1;
   bool in_leap_second = false;
-  for (const auto& e : kLeapSeconds) {
-    const std::int64_t start_tai =
-        naive_utc_ns(days_from_civil(e.year, e.month, e.day), 0) +
-        e.tai_minus_utc_s * kNanosPerSecond;
-    if (tai >= start_tai) {
-      offset_s = e.tai_minus_utc_s;
-      in_leap_second = false;
-    } else {
-      // The second just before a new entry is the inserted 23:59:60.
-      in_leap_second = offset_s >= 0 && tai >= start_tai - kNanosPerSecond;
-      break;
-    }
+  for (std::size_t k = kLeapStarts.size(); k-- > 0;) {
+    if (tai < kLeapStarts[k].tai_ns) continue;
+    offset_s = kLeapSeconds[k].tai_minus_utc_s;
+    // The second just before the next entry is the inserted 23:59:60.
+    in_leap_second = k + 1 < kLeapStarts.size() && tai >= kLeapStarts[k + 1].tai_ns - kNanosPerSecond;
+    break;
   }
   if (offset_s < 0) {
     throw std::out_of_range("TT instant before 1972-01-01 UTC is not supported");

@@ -672,6 +672,8 @@ class Parser {
     Val mode;
     bool gnss_explicit = false;
     Val gnss_enabled;
+    bool coarse_orbit_explicit = false;
+    Val coarse_orbit;
   };
 
   // --- top-level scalars -------------------------------------------------
@@ -1125,7 +1127,7 @@ class Parser {
     }
     std::map<std::string, Loc> seen;
     for (const Val& item : *list) {
-      Map m(ctx_, item, {"spacecraft", "mode", "camera", "gnss", "apriori", "targets"});
+      Map m(ctx_, item, {"spacecraft", "mode", "camera", "gnss", "apriori", "targets", "coarse_orbit"});
       if (!m.ok()) continue;
       ObserverConfig o;
       ObsInfo info;
@@ -1196,6 +1198,22 @@ class Parser {
           }
         }
       }
+      if (const Val* c = m.find("coarse_orbit")) {
+        info.coarse_orbit = *c;
+        info.coarse_orbit_explicit = true;
+        Map cm(ctx_, *c, {"sigma_roe_m"});
+        if (cm.ok()) {
+          if (const Val* r = cm.require("sigma_roe_m", "[da, dlambda, dex, dey, dix, diy] 1-sigma times a, in m")) {
+            if (auto sig = read_vector<6>(ctx_, *r, "[da, dlambda, dex, dey, dix, diy] in m")) {
+              if (!((*sig).array() > 0.0).all() || !((*sig).array() <= 1e6).all()) {
+                ctx_.error(*r, "out of range: expected every 1-sigma in (0, 1e6] m");
+              } else {
+                o.coarse_orbit_sigma_a_roe_m = *sig;
+              }
+            }
+          }
+        }
+      }
       // Mode 4 flies without GNSS: off unless the file says otherwise (an error).
       if (o.mode == 4 && !info.gnss_explicit) o.gnss.enabled = false;
       if (ok) {
@@ -1209,10 +1227,9 @@ class Parser {
     for (std::size_t k = 0; k < s_.observers.size(); ++k) {
       const auto& o = s_.observers[k];
       const auto& info = obs_info_[k];
-      // Mode 4 (angles only, no GNSS) is not in the emulator yet (issue
-      // 18): a scenario asking for it is refused rather than run as mode 0.
-      if (o.mode == 4) {
-        ctx_.error(info.mode, "navigation mode 4 (angles only, no GNSS) is not implemented yet: expected 0, 1, 2 or 3");
+      if (o.mode != 4 && info.coarse_orbit_explicit) {
+        ctx_.error(info.coarse_orbit, "coarse_orbit is the starting orbit of navigation mode 4; mode " +
+                                          std::to_string(o.mode) + " starts from its GNSS fixes");
       }
       if (o.mode == 4 && o.gnss.enabled) {
         ctx_.error(info.gnss_enabled,

@@ -109,6 +109,15 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
                        {"dv_rtn_mps", {m.dv_rtn_mps[0], m.dv_rtn_mps[1], m.dv_rtn_mps[2]}},
                        {"execution_sigma_fraction", m.execution_sigma_fraction}});
   }
+  json coarse = nullptr;
+  if (u.coarse_orbit) {
+    const auto& c = *u.coarse_orbit;
+    const auto& x = c.x_eci;
+    coarse = {{"t_tt_ns", c.t.ns_since_j2000},
+              {"r_eci_m", {x.r_m[0], x.r_m[1], x.r_m[2]}},
+              {"v_eci_mps", {x.v_mps[0], x.v_mps[1], x.v_mps[2]}},
+              {"covariance_rv", std::vector<double>(c.P_rv.data(), c.P_rv.data() + 36)}};
+  }
   json outages = json::array();
   for (const auto& w : o.gnss.outages) outages.push_back({w.start.ns_since_j2000, w.end.ns_since_j2000});
   const json j = {
@@ -187,6 +196,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
         {"saturation_dn", u.camera_calibration.saturation_dn}}},
       {"star_catalog_file", u.star_catalog_file},
       {"apriori_age_days", u.apriori_age_days},
+      {"coarse_orbit", coarse},
       {"apriori", apriori},
       {"onboard_properties", onboard},
       {"planned_maneuvers", planned},
@@ -336,6 +346,25 @@ ObserverUplink read_uplink(const std::string& path) {
         }
         u.apriori.push_back(ta);
       }
+    }
+    if (j.contains("coarse_orbit") && !j.at("coarse_orbit").is_null()) {
+      const auto& jc = j.at("coarse_orbit");
+      ObserverUplink::CoarseOrbit co;
+      co.t = astro::TimeTT{jc.at("t_tt_ns").get<std::int64_t>()};
+      const auto r = jc.at("r_eci_m").get<std::vector<double>>();
+      const auto v = jc.at("v_eci_mps").get<std::vector<double>>();
+      const auto P = jc.at("covariance_rv").get<std::vector<double>>();
+      if (r.size() != 3 || v.size() != 3 || P.size() != 36) {
+        throw std::runtime_error(path + ": coarse_orbit: r_eci_m and v_eci_mps need 3 values, covariance_rv 36");
+      }
+      co.x_eci.r_m = astro::Vec3(r[0], r[1], r[2]);
+      co.x_eci.v_mps = astro::Vec3(v[0], v[1], v[2]);
+      for (int i = 0; i < 36; ++i) co.P_rv.data()[i] = P[static_cast<std::size_t>(i)];
+      if (!co.x_eci.r_m.allFinite() || !co.x_eci.v_mps.allFinite() || !co.P_rv.allFinite() ||
+          (co.P_rv.diagonal().array() <= 0.0).any()) {
+        throw std::runtime_error(path + ": coarse_orbit: non-finite value or a variance <= 0");
+      }
+      u.coarse_orbit = co;
     }
     if (j.contains("planned_maneuvers")) {
       for (const auto& m : j.at("planned_maneuvers")) {

@@ -506,18 +506,29 @@ TEST(ScenarioValidation, AnUnknownRoeTypeIsNamed) {
   EXPECT_THAT(diags[0].message, HasSubstr("expected osculating or mean"));
 }
 
-TEST(ScenarioValidation, Mode4IsRefusedUntilItExists) {
-  // Mode 4 turns GNSS off by default: the only error is the mode itself.
-  const std::string path = write_file("mode4.yaml", kValid + "    mode: 4\n  - spacecraft: SV2\n    mode: 3\n");
+TEST(ScenarioValidation, Mode4LoadsWithoutGnssAndItsCoarseOrbit) {
+  // Mode 4 turns GNSS off by default; coarse_orbit gives its starting orbit's
+  // 1-sigma (a default when omitted).
+  const std::string text = kValid + "    mode: 4\n    coarse_orbit: {sigma_roe_m: [10, 2500, 250, 250, 250, 250]}\n"
+                                    "  - spacecraft: SV2\n    mode: 4\n";
+  const std::string path = write_file("mode4.yaml", text);
   const auto diags = validate_scenario_file(path);
-  ASSERT_EQ(diags.size(), 1u) << dump(diags);
-  EXPECT_EQ(diags[0].field, "observers[0].mode");
-  EXPECT_EQ(diags[0].line, 12);
-  EXPECT_THAT(diags[0].message, HasSubstr("navigation mode 4"));
-  EXPECT_THAT(diags[0].message, HasSubstr("is not implemented yet: expected 0, 1, 2 or 3"));
-  EXPECT_THROW(load_scenario(path), ScenarioError);
+  ASSERT_TRUE(diags.empty()) << dump(diags);
+  const Scenario s = load_scenario(path);
+  ASSERT_EQ(s.observers.size(), 2u);
+  EXPECT_EQ(s.observers[0].mode, 4);
+  EXPECT_FALSE(s.observers[0].gnss.enabled);
+  EXPECT_DOUBLE_EQ(s.observers[0].coarse_orbit_sigma_a_roe_m[1], 2500.0);
+  EXPECT_DOUBLE_EQ(s.observers[1].coarse_orbit_sigma_a_roe_m[1], 5000.0);
 }
 
+TEST(ScenarioValidation, CoarseOrbitOnlyInMode4AndPositive) {
+  expect_one("coarse_mode1.yaml", kValid + "    coarse_orbit: {sigma_roe_m: [10, 2500, 250, 250, 250, 250]}\n", 12,
+             "observers[0].coarse_orbit", "starting orbit of navigation mode 4");
+  const std::string bad = kValid + "    mode: 4\n    coarse_orbit: {sigma_roe_m: [10, 0, 250, 250, 250, 250]}\n"
+                                   "  - spacecraft: SV2\n    mode: 4\n";
+  expect_one("coarse_zero.yaml", bad, 13, "observers[0].coarse_orbit.sigma_roe_m", "out of range");
+}
 TEST(ScenarioValidation, Mode2WithATargetListLoads) {
   const std::string path =
       write_file("mode2.yaml", kValid + "    mode: 2\n    targets: [SV2]\n  - spacecraft: SV2\n    mode: 3\n");
@@ -718,7 +729,7 @@ TEST(ScenarioValidation, NavigationModeConsistency) {
 )";
   expect_one("mode4_gnss.yaml", text, 13, "observers[0].gnss.enabled",
              "mode 4 navigates without GNSS");
-  // Line 12 also carries "not implemented yet" until mode 4 exists.
+  // Line 12: mode 4 needs a second observer.
   const auto diags = validate_scenario_file(write_file("mode4_alone.yaml", text));
   bool alone = false;
   for (const auto& d : diags) {

@@ -53,6 +53,29 @@ TEST(Uplink, RoundTripsTheVariableAtmosphereAndOnboardProperties) {
   EXPECT_EQ(b.onboard_properties_by_id.size(), s.spacecraft.size());
 }
 
+TEST(Uplink, RoundTripsTheCoarseOrbitOfMode4) {
+  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  ObserverUplink u = make_uplink(s, "SV4");
+  ObserverUplink::CoarseOrbit c;
+  c.t = s.epoch;
+  c.x_eci.r_m = astro::Vec3(7.0e6, 1.0, -2.0);
+  c.x_eci.v_mps = astro::Vec3(0.5, 7.5e3, 1.0);
+  c.P_rv = Eigen::Matrix<double, 6, 6>::Identity() * 4.0;
+  c.P_rv(0, 1) = c.P_rv(1, 0) = 0.5;
+  u.coarse_orbit = c;
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_mode4.json";
+  write_uplink(u, path);
+  const ObserverUplink b = read_uplink(path);
+  ASSERT_TRUE(b.coarse_orbit.has_value());
+  EXPECT_EQ(b.coarse_orbit->t, c.t);
+  EXPECT_EQ(b.coarse_orbit->x_eci.r_m, c.x_eci.r_m);
+  EXPECT_EQ(b.coarse_orbit->x_eci.v_mps, c.x_eci.v_mps);
+  EXPECT_EQ(b.coarse_orbit->P_rv, c.P_rv);
+  // Modes 1-3 carry none.
+  write_uplink(make_uplink(s, "SV4"), path);
+  EXPECT_FALSE(read_uplink(path).coarse_orbit.has_value());
+}
+
 TEST(Uplink, MalformedFileNamesFileAndKey) {
   const std::string path = ::testing::TempDir() + "/bad_uplink.json";
   std::ofstream(path) << R"({"scenario": "x", "epoch_tt_ns": "soon"})";

@@ -125,7 +125,11 @@ double remote_bearing_max_age_s(const config::ObserverUplink& up) {
 
 Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceModel& forces, NavigatorOptions options)
     : up_(up), forces_(forces), opt_(options), onboard_(forces, up.onboard_properties(up.observer.spacecraft)) {
-  fuse_remote_ = up.observer.mode == 3;
+  fuse_remote_ = up.observer.mode >= 3;
+  angles_only_ = up.observer.mode == 4;
+  if (angles_only_ && !up.coarse_orbit) {
+    throw std::invalid_argument("fsw::Navigator: navigation mode 4 needs the uplinked coarse_orbit (no GNSS)");
+  }
   if (opt_.remote_hold_s < 0.0) opt_.remote_hold_s = remote_bearing_max_age_s(up);
   if (fuse_remote_) opt_.max_lag_s = std::max(opt_.max_lag_s, opt_.remote_hold_s);
   // The targets: those of the ground a-priori, else (mode 2) the uplinked
@@ -320,12 +324,32 @@ astro::Mat6 Navigator::apriori_covariance_at(int k, astro::TimeTT t) const {
 }
 
 void Navigator::initialise(const sod::GnssMeasurement& g) {
-  const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
-  a_observer_m_ = obs.a_m;
   Vec6 var_rv;
   var_rv << Eigen::Vector3d::Constant(g.sigma_r_m * g.sigma_r_m), Eigen::Vector3d::Constant(g.sigma_v_mps * g.sigma_v_mps);
   const Mat6 J = astro::jacobian_qns_from_cartesian(g.x_eci);
-  Mat6 P_obs = J * var_rv.asDiagonal() * J.transpose();
+  initialise_at(g.t, astro::qns_from_cartesian(g.x_eci), J * var_rv.asDiagonal() * J.transpose(),
+                "the GNSS fix of " + astro::utc_string(g.t, 0));
+}
+
+void Navigator::initialise_angles_only() {
+  // Navigation mode 4: the first time from the uplinked coarse orbit; after a
+  // filter-wide health failure from the observer's own estimate, its
+  // covariance widened by the coarse orbit's (no GNSS fix will come).
+  const auto& c = *up_.coarse_orbit;
+  const Mat6 J = astro::jacobian_qns_from_cartesian(c.x_eci);
+  const Mat6 P_coarse = J * c.P_rv * J.transpose();
+  if (!filter_) {
+    initialise_at(c.t, astro::qns_from_cartesian(c.x_eci), P_coarse,
+                  "the uplinked coarse orbit of " + astro::utc_string(c.t, 0) + " (mode 4: no GNSS)");
+    return;
+  }
+  const Mat6 P_own = filter_->covariance().topLeftCorner<6, 6>();
+  initialise_at(filter_->epoch(), filter_->observer(), P_own + P_coarse,
+                "its own orbit estimate with the coarse orbit's covariance added (mode 4: no GNSS)");
+}
+
+void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, Mat6 P_obs, const std::string& from) {
+  a_observer_m_ = obs.a_m;
   P_obs += Mat6::Identity() * 1e-20;
   const int n = static_cast<int>(target_ids_.size());
   // Auxiliary states carry over a re-initialisation (the camera clock and
@@ -365,7 +389,7 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
   for (int k = 0; k < n; ++k) {
     astro::Vec6 roe;
     astro::Mat6 Pk;
-    has_estimate_[static_cast<std::size_t>(k)] = restart_estimate(k, g.t, obs, roe, Pk);
+    has_estimate_[static_cast<std::size_t>(k)] = restart_estimate(k, t0, obs, roe, Pk);
     if (!has_estimate_[static_cast<std::size_t>(k)]) {
       // No estimate yet (mode 2): a placeholder 35 km ahead with a tight
       // covariance that nothing updates; left out of association, updates,
@@ -380,7 +404,7 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
     roes.push_back(astro::Roe::from_vector(roe));
     P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Pk;
   }
-  filter_->initialize(g.t, filter_->make_state(obs, roes, aux), P);
+  filter_->initialize(t0, filter_->make_state(obs, roes, aux), P);
   suspect_.assign(target_ids_.size(), false);
   tracks_.clear();
   reinit_pending_ = false;
@@ -395,7 +419,7 @@ void Navigator::initialise(const sod::GnssMeasurement& g) {
     what += (what.empty() ? "; " : "; ") + std::to_string(n - from_apriori - from_bod) +
             " targets wait for BOD (no a-priori)";
   }
-  messages_.push_back("SOD initialised at the GNSS fix of " + astro::utc_string(g.t, 0) + what);
+  messages_.push_back("SOD initialised at " + from + what);
 }
 
 bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const {
@@ -712,6 +736,14 @@ void Navigator::check_health() {
       set_suspect(static_cast<int>(k), true, "its observer manoeuvred without a plan (GNSS consistency)");
     }
     h = f.health();
+  }
+  if (!h.filter.healthy() && !reinit_pending_ && angles_only_ &&
+      (h.filter.condition == sod::HealthCondition::kNoMeasurementUpdate ||
+       h.filter.condition == sod::HealthCondition::kOutOfRange)) {
+    messages_.push_back("SOD unhealthy (" + std::string(sod::to_string(h.filter.condition)) + ": " + h.filter.reason +
+                        "): re-initialising from its own orbit (coarse covariance added) and the ground a-priori");
+    initialise_angles_only();
+    return;
   }
   if (!h.filter.healthy() && !reinit_pending_ &&
       (h.filter.condition == sod::HealthCondition::kNoMeasurementUpdate ||
@@ -1160,6 +1192,7 @@ void Navigator::advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Sa
 }
 
 void Navigator::process_until(astro::TimeTT limit, const imp::Samus& samus) {
+  if (angles_only_ && !filter_ && !(limit < up_.coarse_orbit->t)) initialise_angles_only();
   std::stable_sort(queue_.begin(), queue_.end(), [](const Event& a, const Event& b) {
     return std::tie(a.t, a.kind, a.track) < std::tie(b.t, b.kind, b.track);
   });
@@ -1199,7 +1232,10 @@ const sod::SodFilter* Navigator::predicted_to(astro::TimeTT t, bool even_if_unus
       predicted_usable_ =
           predicted_usable_ && predicted_->apply_observer_maneuver(m.t, m.dv_rtn_mps, execution_covariance(m)).usable;
     }
-    predicted_usable_ = predicted_usable_ && (!(predicted_->epoch() < t) || predicted_->time_update(t).usable);
+    // Telemetry and IMP's predictions: the linearised prediction (its mean
+    // through the onboard model; in modes 3 and 4 the filter runs ~20 min
+    // behind the clock, and the unscented one cost 90 % of a run).
+    predicted_usable_ = predicted_usable_ && (!(predicted_->epoch() < t) || predicted_->predict_linearised(t).usable);
     predicted_version_ = version_;
     predicted_t_ = t;
   }

@@ -91,9 +91,11 @@ Observer::Observer(ObserverSetup setup, std::string source)
   aided_options_ = aided_detection_options(up_.camera_calibration, up_.tuning.imp);
   // Navigation modes 1 and 3: SOD from GNSS, the ground a-priori, IMP's
   // bearings (and in mode 3 the remote ones); mode 2: SOD from GNSS, its
-  // targets initialised by BOD from IMP's tracks (no a-priori).
+  // targets initialised by BOD from IMP's tracks (no a-priori); mode 4: as 3
+  // without GNSS, SOD from the uplinked coarse orbit.
   const int mode = up_.observer.mode;
-  if (((mode == 1 || mode == 3) && samus_ && !up_.apriori.empty()) || (mode == 2 && samus_)) {
+  if (((mode == 1 || mode == 3) && samus_ && !up_.apriori.empty()) || (mode == 2 && samus_) ||
+      (mode == 4 && samus_ && !up_.apriori.empty() && up_.coarse_orbit)) {
     navigator_.emplace(up_, *setup_.forces);
   }
 }
@@ -279,12 +281,19 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
       }
       pending_direct_.clear();
     }
+    // The observer's own orbit for SAMUS: its latest GNSS fix propagated, or
+    // in mode 4 (no GNSS) SOD's estimate.
+    std::optional<astro::StateVector> own;
     if (last_fix_) {
+      own = astro::cartesian_from_qns(onboard_.propagate(astro::qns_from_cartesian(last_fix_->x), last_fix_->t, tf));
+    } else if (navigator_ && up_.observer.mode == 4) {
+      if (const NavReport r = navigator_->report(tf); r.valid) own = r.x_eci;
+    }
+    if (own) {
       imp::TrackerInput in;
       in.frame = f.frame_seq;
       in.t = tf;
-      in.observer_eci =
-          astro::cartesian_from_qns(onboard_.propagate(astro::qns_from_cartesian(last_fix_->x), last_fix_->t, tf));
+      in.observer_eci = *own;
       in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
       in.candidates = fr.candidates;
       // SOD-aided tracking for tracks bound to converged targets.
@@ -391,7 +400,7 @@ bus::NavTelemetry Observer::navigation(astro::TimeTT t) const {
   if (nr.valid) {
     nav.mode = static_cast<std::uint8_t>(up_.observer.mode);
     nav.health = static_cast<bus::Health>(nr.health);
-    nav.source = bus::SolutionSource::kSod;
+    nav.source = up_.observer.mode == 4 ? bus::SolutionSource::kSodAnglesOnly : bus::SolutionSource::kSod;
     nav.r_eci_m = to_array(nr.x_eci.r_m);
     nav.v_eci_mps = to_array(nr.x_eci.v_mps);
     for (int i = 0; i < 36; ++i) nav.covariance_rv[static_cast<std::size_t>(i)] = nr.P_rv.data()[i];
@@ -474,6 +483,11 @@ ObserverOutputs Observer::step(const bus::Tick& tick, ObserverInputs in) {
                                               "target from its IMP track, every " +
                                               std::to_string(static_cast<int>(up_.tuning.bod.period_s / 60.0)) +
                                               " min); SOD starts at the first GNSS fix");
+      } else if (mode == 4) {
+        events_.info(t.ns_since_j2000, head + (up_.tuning.bod.enabled ? ": IMP, BOD and SOD" : ": IMP and SOD") +
+                                           " from bearings only (local and remote; no GNSS): the absolute orbit "
+                                           "starts from the uplinked coarse orbit, the targets from the ground "
+                                           "a-priori");
       } else {
         events_.info(t.ns_since_j2000, head + (up_.tuning.bod.enabled ? ": IMP, BOD and SOD" : ": IMP and SOD") +
                                            " (GNSS fixes, the ground a-priori and " +
@@ -485,6 +499,7 @@ ObserverOutputs Observer::step(const bus::Tick& tick, ObserverInputs in) {
     } else {
       const std::string why = !processor_        ? "no camera calibration or star catalog uplinked"
                               : up_.apriori.empty() ? "no ground a-priori uplinked"
+                              : mode == 4 && !up_.coarse_orbit ? "no coarse orbit uplinked"
                                                     : "this mode is not implemented";
       events_.warning(t.ns_since_j2000, head + " requested but " + why +
                                             ": running the GNSS-only baseline (mode 0)" +

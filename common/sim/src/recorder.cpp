@@ -102,7 +102,7 @@ Recorder::Recorder(const config::Scenario& sc, const std::string& out_dir)
         dir / "nav" / (o.spacecraft + ".csv"),
         "t_utc,t_tt_ns,mode,health,source,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,"
         "sigma_x_m,sigma_y_m,sigma_z_m,sigma_vx_mps,sigma_vy_mps,sigma_vz_mps,targets,frames_received,isl_sent,"
-        "isl_received,isl_rejected");
+        "isl_received,isl_rejected,covariance_upper");
   }
   // IMP telemetry per observer, the columns of artms-imp (DESIGN.md section 7).
   for (const auto& o : sc.observers) {
@@ -126,13 +126,13 @@ Recorder::Recorder(const config::Scenario& sc, const std::string& out_dir)
       dir / "isl.csv", "t_utc,t_tt_ns,sender,receiver,sequence,t_sent_tt_ns,source,measurements,range_m,status,reason");
   links_ = std::make_unique<Sink>(dir / "links.csv", "t_utc,t_tt_ns,from,to,up,reason");
   events_ = std::make_unique<Sink>(dir / "events.log", "");
-  // BOD telemetry (modes 1-3 run BOD): one row per attempt, one per sample
+  // BOD telemetry (modes 1-4 run BOD): one row per attempt, one per sample
   // of its residual curve.
   bool any_bod = false;
-  for (const auto& o : sc.observers) any_bod = any_bod || (o.mode >= 1 && o.mode <= 3);
+  for (const auto& o : sc.observers) any_bod = any_bod || (o.mode >= 1 && o.mode <= 4);
   if (any_bod) fs::create_directories(dir / "bod");
   for (const auto& o : sc.observers) {
-    if (o.mode < 1 || o.mode > 3) continue;
+    if (o.mode < 1 || o.mode > 4) continue;
     bod_[o.spacecraft] = std::make_unique<Sink>(
         dir / "bod" / (o.spacecraft + ".csv"),
         "t_utc,t_tt_ns,observer,attempt,track,target,verdict,verdict_name,measurements,iterations,"
@@ -185,7 +185,18 @@ void Recorder::add(const bus::NavTelemetry& m) {
                       static_cast<int>(m.source), m.r_eci_m[0], m.r_eci_m[1], m.r_eci_m[2], m.v_eci_mps[0],
                       m.v_eci_mps[1], m.v_eci_mps[2], sd(0), sd(1), sd(2), sd(3), sd(4), sd(5),
                       static_cast<unsigned>(m.targets.size()), m.frames_received, m.isl_sent, m.isl_received,
-                      m.isl_rejected));
+                      m.isl_rejected) +
+                      // Full covariance of [r; v] (m, m/s), upper triangle row by row, space-separated in one
+                      // column (absolute NEES and RTN sigmas in the evaluation).
+                      [&] {
+                        std::string c = ",";
+                        for (std::size_t r = 0; r < 6; ++r) {
+                          for (std::size_t col = r; col < 6; ++col) {
+                            c += fmt(r == 0 && col == 0 ? "%.9e" : " %.9e", m.covariance_rv[r * 6 + col]);
+                          }
+                        }
+                        return c;
+                      }());
   for (const auto& e : m.targets) {
     std::string line =
         fmt("%s,%lld,%s,%s", utc(m.t_tt_ns).c_str(), static_cast<long long>(m.t_tt_ns), m.observer.c_str(), e.target.c_str());

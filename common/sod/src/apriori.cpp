@@ -6,6 +6,7 @@
 #include <string>
 
 #include "artms/astro/elements.hpp"
+#include "artms/astro/roe.hpp"
 
 namespace artms::sod {
 
@@ -74,6 +75,42 @@ astro::Mat6 apriori_covariance_drifted(const astro::Mat6& P_roe, double a_observ
   astro::Mat6 Phi = astro::Mat6::Identity();
   Phi(1, 0) = -1.5 * n * dt_s;
   return Phi * P_roe * Phi.transpose();
+}
+
+}  // namespace artms::sod
+
+namespace artms::sod {
+
+namespace {
+// The orbit x displaced by the ROE a_roe_m / a (the deputy of x at those ROE).
+astro::StateVector displaced(const astro::QnsElements& chief, const astro::Vec6& a_roe_m) {
+  return astro::cartesian_from_qns(astro::qns_from_roe(chief, astro::Roe::from_vector(a_roe_m / chief.a_m)));
+}
+}  // namespace
+
+astro::Mat6 coarse_orbit_covariance_rv(const astro::StateVector& x_eci, const astro::Vec6& sigma_a_roe_m) {
+  if (!sigma_a_roe_m.allFinite() || (sigma_a_roe_m.array() <= 0.0).any()) {
+    throw std::invalid_argument("coarse_orbit_covariance_rv: every 1-sigma must be finite and > 0");
+  }
+  const astro::QnsElements chief = astro::qns_from_cartesian(x_eci);
+  astro::Mat6 J;
+  for (int i = 0; i < 6; ++i) {
+    astro::Vec6 d = astro::Vec6::Zero();
+    d[i] = 1.0;  // 1 m of a*ROE
+    const astro::StateVector p = displaced(chief, d), m = displaced(chief, -d);
+    J.col(i) << (p.r_m - m.r_m) / 2.0, (p.v_mps - m.v_mps) / 2.0;
+  }
+  return J * sigma_a_roe_m.cwiseAbs2().asDiagonal() * J.transpose();
+}
+
+CoarseOrbit draw_coarse_orbit(const astro::StateVector& truth_eci, const astro::Vec6& sigma_a_roe_m,
+                              std::mt19937_64& rng) {
+  std::normal_distribution<double> n01(0.0, 1.0);
+  CoarseOrbit c;
+  for (int i = 0; i < 6; ++i) c.error_a_roe_m[i] = sigma_a_roe_m[i] * n01(rng);
+  c.x_eci = displaced(astro::qns_from_cartesian(truth_eci), -c.error_a_roe_m);
+  c.P_rv = coarse_orbit_covariance_rv(c.x_eci, sigma_a_roe_m);
+  return c;
 }
 
 }  // namespace artms::sod

@@ -357,6 +357,61 @@ TimeUpdateSummary SodFilter::time_update(TimeTT t) {
   return s;
 }
 
+TimeUpdateSummary SodFilter::predict_linearised(TimeTT t) {
+  TimeUpdateSummary s;
+  if (!initialized_) {
+    s.why = "filter not initialised";
+    return s;
+  }
+  s.dt_s = astro::seconds_between(t_, t);
+  if (s.dt_s == 0.0) {
+    s.usable = true;
+    return s;
+  }
+  adapt_process_noise();
+  const int n = layout_.size();
+  VectorXd x = x_;
+  MatrixXd Phi = MatrixXd::Identity(n, n);
+  try {
+    const QnsElements o0 = QnsElements::from_vector(x_.head<6>());
+    const QnsElements o1 = observer_prop_.propagate(o0, t_, t);
+    ++s.propagations;
+    x.head<6>() = o1.as_vector();
+    const double n_rad = std::sqrt(gm_m3ps2_ / std::pow(o0.a_m, 3));
+    Phi(StateLayout::kU, StateLayout::kA) = -1.5 * n_rad / o0.a_m * s.dt_s;
+    for (int k = 0; k < layout_.n_targets; ++k) {
+      const int off = layout_.target_offset(k);
+      const QnsElements tgt1 = target_prop_.propagate(astro::qns_from_roe(o0, Roe::from_vector(x_.segment<6>(off))), t_, t);
+      ++s.propagations;
+      x.segment<6>(off) = astro::roe_from_qns(o1, tgt1).as_vector();
+      Phi(off + StateLayout::kDlambda, off + StateLayout::kDa) = -1.5 * n_rad * s.dt_s;
+    }
+  } catch (const std::exception& e) {
+    s.why = std::string("propagation of the mean failed: ") + e.what();
+    return s;
+  }
+  // The auxiliary dynamics are linear: their map is applied to the identity.
+  const MatrixXd I = MatrixXd::Identity(n, n);
+  MatrixXd A = I;
+  apply_aux_dynamics(I, A, s.dt_s);
+  Phi = (A - I) + Phi;
+  const VectorXd x_aux = x_;
+  MatrixXd Y = x;
+  apply_aux_dynamics(x_aux, Y, s.dt_s);
+  MatrixXd P = Phi * P_ * Phi.transpose();
+  P.diagonal() += q_ * std::abs(s.dt_s);
+  if (!store(Y.col(0), P)) {
+    s.why = "predicted covariance not positive definite (or state not finite)";
+    return s;
+  }
+  t_ = t;
+  last_dt_s_ = std::abs(s.dt_s);
+  ++steps_without_update_;
+  for (auto& c : counters_) ++c.steps_without_update;
+  s.usable = true;
+  return s;
+}
+
 void SodFilter::apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) const {
   const int m = static_cast<int>(X.cols());
   // Time-tag offset with drift: offset(t + dt) = offset(t) + drift dt.

@@ -140,6 +140,21 @@ def target_nees(run_dir):
     return out
 
 
+def observer_nees(run_dir):
+    """Absolute position NEES (3 dof) of eval/observers.csv: {observer: {t_tt_ns: nees}}; empty when the run
+    folder predates the nees_pos column."""
+    path = os.path.join(run_dir, "eval", "observers.csv")
+    if not os.path.exists(path):
+        return {}
+    t = read_csv(path, required=("observer", "t_tt_ns"))
+    if "nees_pos" not in t.columns:
+        return {}
+    out = {}
+    for r in t:
+        out.setdefault(r["observer"], {})[r.int("t_tt_ns")] = r.float("nees_pos")
+    return out
+
+
 def target_nis(run_dir):
     """Cumulative bearing NIS of nav/targets.csv: {(observer, target): {t_tt_ns: (nis_sum, updates)}};
     empty when the run folder predates the bearing_nis_sum column."""

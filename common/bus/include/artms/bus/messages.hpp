@@ -32,8 +32,9 @@ inline std::string bounded(std::string s, std::size_t chars) {
 // Navigation telemetry: filter health (NavTelemetry::health).
 enum class Health : std::uint8_t { kHealthy = 0, kReinitialising = 1, kNoSolution = 2 };
 // Where an absolute orbit comes from (NavTelemetry::source, IslBroadcast::source).
-enum class SolutionSource : std::uint8_t { kNone = 0, kSod = 1, kGnss = 2, kGround = 3 };
-inline constexpr std::uint8_t kMaxSolutionSource = 3;
+// kSodAnglesOnly: SOD without GNSS (navigation mode 4, bearings only).
+enum class SolutionSource : std::uint8_t { kNone = 0, kSod = 1, kGnss = 2, kGround = 3, kSodAnglesOnly = 4 };
+inline constexpr std::uint8_t kMaxSolutionSource = 4;
 // IMP's verdict on a frame (ImpReport::status; attitude.csv's status column).
 enum class FrameStatus : std::uint8_t { kOk = 0, kNoDetections = 1, kNotIdentified = 2, kCorrupt = 3, kEnd = 4 };
 // Event severity (Event::severity; events.log).
@@ -53,6 +54,7 @@ inline const char* to_string(SolutionSource s) {
     case SolutionSource::kSod: return "sod";
     case SolutionSource::kGnss: return "gnss";
     case SolutionSource::kGround: return "ground";
+    case SolutionSource::kSodAnglesOnly: return "sod_angles_only";
   }
   return "unknown";
 }

@@ -115,6 +115,12 @@ struct ObserverConfig {
   // samples (mode 2: how BOD tells identical unknown targets apart); {0, 0}:
   // tuning.bod.range_min_m / range_max_m.
   std::vector<std::array<double, 2>> target_ranges_m;
+  // Navigation mode 4: the coarse ground orbit the observer starts from (no
+  // GNSS afterwards). 1-sigma of its error, as a * (quasi-nonsingular ROE of
+  // the true orbit relative to the uplinked one) [da, dlambda, dex, dey, dix,
+  // diy] in m; the launcher draws the error (seeded) and uplinks the orbit with
+  // this covariance. SCHEMA.md, observers[].coarse_orbit.
+  astro::Vec6 coarse_orbit_sigma_a_roe_m = (astro::Vec6() << 20.0, 5000.0, 500.0, 500.0, 500.0, 500.0).finished();
 };
 
 struct LinkOutage {

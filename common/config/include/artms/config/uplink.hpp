@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,15 @@ struct ObserverUplink {
     double execution_sigma_fraction = 0.0;
   };
   std::vector<PlannedManeuver> planned_maneuvers;
+  // Navigation mode 4: the coarse ground orbit of the observer (a degraded
+  // orbit determination, paper "Absolute Navigation") and its covariance;
+  // SOD starts from it and never sees a GNSS fix.
+  struct CoarseOrbit {
+    astro::TimeTT t;
+    astro::StateVector x_eci;
+    Eigen::Matrix<double, 6, 6> P_rv = Eigen::Matrix<double, 6, 6>::Zero();
+  };
+  std::optional<CoarseOrbit> coarse_orbit;
   // The nominal properties of `id`; SpacecraftProperties{} for an id the
   // uplink does not list (uplink files written before they were carried).
   [[nodiscard]] dynamics::SpacecraftProperties onboard_properties(const std::string& id) const;

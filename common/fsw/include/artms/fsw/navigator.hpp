@@ -308,7 +308,8 @@ class Navigator {
   std::size_t late_ = 0;
   std::size_t blended_ = 0;
   std::size_t remote_broadcasts_ = 0;
-  bool fuse_remote_ = false;             // navigation mode 3
+  bool fuse_remote_ = false;             // navigation modes 3 and 4
+  bool angles_only_ = false;             // navigation mode 4: no GNSS, the absolute orbit from bearings
   std::vector<std::string> senders_;
   std::map<std::string, LinkWatch> links_;
   // Remote bearings already queued, (sender, t, track label): a sender
@@ -387,6 +388,9 @@ class Navigator {
   // updates.
   void process_remote(const std::vector<Event>& group);
   void initialise(const sod::GnssMeasurement& g);
+  void initialise_angles_only();  // mode 4: the uplinked coarse orbit, or the own estimate after a failure
+  void initialise_at(astro::TimeTT t0, const astro::QnsElements& observer, Eigen::Matrix<double, 6, 6> P_observer_qns,
+                     const std::string& from);
   [[nodiscard]] astro::Roe apriori_at(int k, astro::TimeTT t) const;
   // Its covariance carried along the same drift: Phi P Phi^T, Phi(dlambda, da) = -1.5 n dt.
   [[nodiscard]] astro::Mat6 apriori_covariance_at(int k, astro::TimeTT t) const;

@@ -53,4 +53,23 @@ astro::Vec6 draw_apriori_error_a_roe_m(const AprioriRoe& apriori, std::mt19937_6
 astro::Vec6 apriori_roe_drifted(const astro::Vec6& roe, double a_observer_m, double dt_s);
 astro::Mat6 apriori_covariance_drifted(const astro::Mat6& P_roe, double a_observer_m, double dt_s);
 
+// Navigation mode 4's coarse ground orbit (paper, "Absolute Navigation":
+// "artificially degraded orbit knowledge"): its error is the quasi-nonsingular
+// ROE of the true orbit relative to the uplinked one, 1-sigma sigma_a_roe_m
+// (times a, m), independent per component.
+struct CoarseOrbit {
+  astro::StateVector x_eci;  // the uplinked (degraded) orbit
+  astro::Mat6 P_rv = astro::Mat6::Zero();
+  astro::Vec6 error_a_roe_m = astro::Vec6::Zero();  // the drawn error (truth relative to x_eci), for the record
+};
+// The covariance in ECI position/velocity of an orbit x_eci whose error has
+// the 1-sigma sigma_a_roe_m (first order: the Jacobian of the orbit displaced
+// by a ROE, central differences). Throws std::invalid_argument for a
+// non-positive or non-finite sigma.
+astro::Mat6 coarse_orbit_covariance_rv(const astro::StateVector& x_eci, const astro::Vec6& sigma_a_roe_m);
+// One draw: the true orbit displaced by minus an error drawn from
+// N(0, diag(sigma_a_roe_m^2)) / a, with the covariance above.
+CoarseOrbit draw_coarse_orbit(const astro::StateVector& truth_eci, const astro::Vec6& sigma_a_roe_m,
+                              std::mt19937_64& rng);
+
 }  // namespace artms::sod

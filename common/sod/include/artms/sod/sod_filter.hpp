@@ -257,6 +257,12 @@ class SodFilter {
   // Q = diag(q) |dt|. Sigma points that differ from the mean only in later
   // blocks reuse the mean's propagation (Stacey & D'Amico 2018).
   TimeUpdateSummary time_update(TimeTT t);
+  // A cheap prediction for telemetry and IMP's predictions over short
+  // horizons (never the filter's own time update): the mean through the same
+  // GVE-RK4 dynamics (one trajectory per body), the covariance through the
+  // linear Keplerian drift (du/da = -1.5 n / a, d(dlambda)/d(da) = -1.5 n; D'Amico
+  // 2010) and the auxiliary states' linear dynamics, plus Q |dt|.
+  TimeUpdateSummary predict_linearised(TimeTT t);
   // Unscented measurement updates; each propagates to the measurement epoch
   // first when it differs from epoch().
   UpdateSummary update_bearing(const BearingMeasurement& m);
