@@ -418,6 +418,106 @@ def plot_observer(obs, rows, t0, period, out_dir):
     return path
 
 
+OE_NAMES = [("da", "a"), ("du", "u"), ("dex", "e_x"), ("dey", "e_y"), ("di", "i"), ("draan", r"\Omega")]
+
+
+def plot_absolute(obs, rows, t0, period, out_dir):
+    """The paper's mode-4 figure: the observer's orbit element errors times a with their 1-sigma, and its
+    RTN position errors with 1-sigma (eval/observers.csv; columns written since issue 18)."""
+    names = [f"err_a_{n}_m" for n, _ in OE_NAMES] + [f"sigma_a_{n}_m" for n, _ in OE_NAMES]
+    rtn = ["err_r_m", "err_t_m", "err_n_m", "sigma_r_m", "sigma_t_m", "sigma_n_m"]
+    if not rows or any(n not in rows[0] for n in names + rtn):
+        return []
+    c = columns(rows, names + rtn)
+    t = np.array([parse_time_s(r) for r in rows])
+    order = np.argsort(np.where(np.isfinite(t), t, np.inf), kind="stable")
+    x = (t[order] - t0) / 3600.0
+    c = {k: v[order] for k, v in c.items()}
+    written = []
+    fig, axes = plt.subplots(3, 2, figsize=(10, 7.5), sharex=True)
+    for ax, (n, label) in zip(axes.T.flatten(), OE_NAMES):
+        e, sg = c[f"err_a_{n}_m"], c[f"sigma_a_{n}_m"]
+        ax.plot(x, e, color="black", lw=0.9, label="error")
+        ax.plot(x, sg, color="#3182bd", lw=0.9, ls="--", label=r"$\pm 1\sigma$")
+        ax.plot(x, -sg, color="#3182bd", lw=0.9, ls="--")
+        ax.set_ylabel(rf"$a\,\delta {label}$ [m]")
+        lim = np.nanmax(np.concatenate([np.abs(e), np.abs(sg), [1.0]]))
+        ax.set_ylim(-1.1 * lim, 1.1 * lim)
+        ax.grid(True, lw=0.3, alpha=0.6)
+    axes[0, 0].legend(fontsize=8, loc="upper right")
+    for ax in axes[-1]:
+        ax.set_xlabel("hours since first row")
+    fig.suptitle(f"{obs}: absolute orbit element errors (times a) and 1$\\sigma$", fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.96))
+    path = os.path.join(out_dir, f"absolute_oe_{safe(obs)}.png")
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    written.append(path)
+    fig, axes = plt.subplots(3, 1, figsize=(8.5, 7), sharex=True)
+    for ax, axis in zip(axes, "RTN"):
+        e, sg = c[f"err_{axis.lower()}_m"], c[f"sigma_{axis.lower()}_m"]
+        ax.plot(x, e, color="black", lw=0.9, label=f"{axis} error")
+        ax.plot(x, 3 * sg, color="#de2d26", lw=0.8, ls=":", label=r"$\pm 3\sigma$")
+        ax.plot(x, -3 * sg, color="#de2d26", lw=0.8, ls=":")
+        ax.set_ylabel(f"{axis} [m]")
+        ax.grid(True, lw=0.3, alpha=0.6)
+        ax.legend(fontsize=8, loc="upper right")
+    axes[-1].set_xlabel("hours since first row")
+    pe = np.sqrt(c["err_r_m"] ** 2 + c["err_t_m"] ** 2 + c["err_n_m"] ** 2)
+    fig.suptitle(f"{obs}: absolute position error in its RTN frame: {fmt(first_finite(pe), '{:.0f}')} m at the "
+                 f"start, {fmt(last_finite(pe), '{:.0f}')} m at the end", fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.96))
+    path = os.path.join(out_dir, f"absolute_rtn_{safe(obs)}.png")
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    written.append(path)
+    return written
+
+
+def first_finite(a):
+    a = np.asarray(a, dtype=float)
+    ok = np.isfinite(a)
+    return float(a[ok][0]) if ok.any() else None
+
+
+def plot_isl_received(run_dir, t0, out_dir):
+    """The paper's ISL figure: per receiving observer, the bearings it received over each link (isl.csv,
+    delivered broadcasts), cumulative over time."""
+    rows = read_csv(os.path.join(run_dir, "isl.csv"), "no ISL plot")
+    if not rows:
+        return []
+    links = {}
+    for r in rows:
+        if r.get("status") != "delivered":
+            continue
+        try:
+            n = int(r.get("measurements") or 0)
+        except ValueError:
+            continue
+        t = parse_time_s(r)
+        if n > 0 and math.isfinite(t):
+            links.setdefault(r.get("receiver") or "?", {}).setdefault(r.get("sender") or "?", []).append((t, n))
+    written = []
+    for receiver in sorted(links):
+        fig, ax = plt.subplots(figsize=(8.5, 3.8))
+        for sender in sorted(links[receiver]):
+            pts = sorted(links[receiver][sender])
+            x = (np.array([p[0] for p in pts]) - t0) / 3600.0
+            y = np.cumsum([p[1] for p in pts])
+            ax.step(x, y, where="post", lw=1.0, label=f"{sender} -> {receiver}: {int(y[-1])} bearings")
+        ax.set_xlabel("hours since first row")
+        ax.set_ylabel("bearings received (cumulative)")
+        ax.grid(True, lw=0.3, alpha=0.6)
+        ax.legend(fontsize=8, loc="upper left")
+        ax.set_title(f"ISL bearings received by {receiver}, per link", fontsize=11)
+        fig.tight_layout()
+        path = os.path.join(out_dir, f"isl_received_{safe(receiver)}.png")
+        fig.savefig(path, dpi=DPI)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
 # ---------------------------------------------------------------- BOD
 
 def bod_observers(run_dir):
@@ -770,8 +870,13 @@ def main(argv=None):
         for obs in sorted(by_obs):
             try:
                 written.append(plot_observer(obs, by_obs[obs], t0, period_s(summary, obs), out_dir))
+                written += plot_absolute(obs, by_obs[obs], t0, period_s(summary, obs), out_dir)
             except Exception as e:
                 warn(f"observer plot {obs} failed: {type(e).__name__}: {e}")
+        try:
+            written += plot_isl_received(run_dir, t0, out_dir)
+        except Exception as e:
+            warn(f"ISL plot failed: {type(e).__name__}: {e}")
     written += plot_bod(run_dir, trows, summary, t0 if times else None, out_dir)
 
     if not pairs:

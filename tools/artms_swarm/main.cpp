@@ -74,14 +74,18 @@ void add_ground_apriori(const artms::config::Scenario& sc, const artms::config::
 // "Absolute Navigation": "artificially degraded orbit knowledge"): its true
 // initial orbit displaced by an error drawn from o.coarse_orbit_sigma_a_roe_m
 // (seeded by the run seed and the observer id, a stream apart from the
-// a-priori's), uplinked with that covariance.
+// a-priori's) or the scenario's own error, uplinked with that covariance.
 void add_coarse_orbit(const artms::config::Scenario& sc, const artms::config::ObserverConfig& o,
                       artms::config::ObserverUplink& up) {
   using namespace artms;
   std::uint64_t h = (sc.seed + 0x51ED270B2A7C1F3DULL) * 0x9E3779B97F4A7C15ULL;
   for (char c : o.spacecraft) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001B3ULL;
   std::mt19937_64 rng(h);
-  const sod::CoarseOrbit c = sod::draw_coarse_orbit(sc.initial_state_eci(o.spacecraft), o.coarse_orbit_sigma_a_roe_m, rng);
+  const astro::StateVector truth = sc.initial_state_eci(o.spacecraft);
+  const sod::CoarseOrbit c =
+      o.coarse_orbit_error_a_roe_m
+          ? sod::coarse_orbit_with_error(truth, o.coarse_orbit_sigma_a_roe_m, *o.coarse_orbit_error_a_roe_m)
+          : sod::draw_coarse_orbit(truth, o.coarse_orbit_sigma_a_roe_m, rng);
   up.coarse_orbit = config::ObserverUplink::CoarseOrbit{sc.epoch, c.x_eci, c.P_rv};
 }
 

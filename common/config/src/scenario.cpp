@@ -1201,8 +1201,17 @@ class Parser {
       if (const Val* c = m.find("coarse_orbit")) {
         info.coarse_orbit = *c;
         info.coarse_orbit_explicit = true;
-        Map cm(ctx_, *c, {"sigma_roe_m"});
+        Map cm(ctx_, *c, {"sigma_roe_m", "error_roe_m"});
         if (cm.ok()) {
+          if (const Val* e = cm.find("error_roe_m")) {
+            if (auto err = read_vector<6>(ctx_, *e, "[da, dlambda, dex, dey, dix, diy] in m")) {
+              if (!((*err).array().abs() <= 1e6).all()) {
+                ctx_.error(*e, "out of range: expected every component within +-1e6 m");
+              } else {
+                o.coarse_orbit_error_a_roe_m = *err;
+              }
+            }
+          }
           if (const Val* r = cm.require("sigma_roe_m", "[da, dlambda, dex, dey, dix, diy] 1-sigma times a, in m")) {
             if (auto sig = read_vector<6>(ctx_, *r, "[da, dlambda, dex, dey, dix, diy] in m")) {
               if (!((*sig).array() > 0.0).all() || !((*sig).array() <= 1e6).all()) {

@@ -156,6 +156,8 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   sod_opt_ = sod_options(up.tuning.sod);
   planned_ = up.planned_maneuvers;
   std::stable_sort(planned_.begin(), planned_.end(), [](const auto& a, const auto& b) { return a.t < b.t; });
+  // Mode 4: SOD starts from the coarse orbit at once (no GNSS fix to wait for).
+  if (angles_only_) initialise_angles_only();
 }
 
 void Navigator::apply_planned_maneuvers(astro::TimeTT t) {
@@ -1192,7 +1194,6 @@ void Navigator::advance(astro::TimeTT t_safe, astro::TimeTT t_now, const imp::Sa
 }
 
 void Navigator::process_until(astro::TimeTT limit, const imp::Samus& samus) {
-  if (angles_only_ && !filter_ && !(limit < up_.coarse_orbit->t)) initialise_angles_only();
   std::stable_sort(queue_.begin(), queue_.end(), [](const Event& a, const Event& b) {
     return std::tie(a.t, a.kind, a.track) < std::tie(b.t, b.kind, b.track);
   });

@@ -107,7 +107,25 @@ void Observer::drain_navigator(std::int64_t t_ns) {
 
 void Observer::take_gnss(const std::vector<bus::GnssFix>& fixes, astro::TimeTT t) {
   for (const auto& f : fixes) {
-    if (f.spacecraft != me_ || !f.valid) continue;
+    if (f.spacecraft != me_) continue;
+    if (!f.valid) {
+      // A GNSS outage (scenario gnss.outages): said once when it starts and
+      // once when fixes return; SOD keeps navigating on the onboard model and
+      // the bearings meanwhile.
+      if (!gnss_outage_since_) {
+        gnss_outage_since_ = astro::TimeTT{f.t_tt_ns};
+        events_.warning(f.t_tt_ns, "GNSS: no valid fix (outage): SOD navigates on the onboard model and the "
+                                   "bearings until fixes return");
+      }
+      continue;
+    }
+    if (gnss_outage_since_) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "GNSS: valid fixes again after %.0f s without",
+                    astro::seconds_between(*gnss_outage_since_, astro::TimeTT{f.t_tt_ns}));
+      events_.info(f.t_tt_ns, buf);
+      gnss_outage_since_.reset();
+    }
     Fix fix{astro::TimeTT{f.t_tt_ns},
             {astro::Vec3(f.r_eci_m[0], f.r_eci_m[1], f.r_eci_m[2]),
              astro::Vec3(f.v_eci_mps[0], f.v_eci_mps[1], f.v_eci_mps[2])},

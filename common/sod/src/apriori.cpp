@@ -106,9 +106,16 @@ astro::Mat6 coarse_orbit_covariance_rv(const astro::StateVector& x_eci, const as
 CoarseOrbit draw_coarse_orbit(const astro::StateVector& truth_eci, const astro::Vec6& sigma_a_roe_m,
                               std::mt19937_64& rng) {
   std::normal_distribution<double> n01(0.0, 1.0);
+  astro::Vec6 e;
+  for (int i = 0; i < 6; ++i) e[i] = sigma_a_roe_m[i] * n01(rng);
+  return coarse_orbit_with_error(truth_eci, sigma_a_roe_m, e);
+}
+
+CoarseOrbit coarse_orbit_with_error(const astro::StateVector& truth_eci, const astro::Vec6& sigma_a_roe_m,
+                                    const astro::Vec6& error_a_roe_m) {
   CoarseOrbit c;
-  for (int i = 0; i < 6; ++i) c.error_a_roe_m[i] = sigma_a_roe_m[i] * n01(rng);
-  c.x_eci = displaced(astro::qns_from_cartesian(truth_eci), -c.error_a_roe_m);
+  c.error_a_roe_m = error_a_roe_m;
+  c.x_eci = displaced(astro::qns_from_cartesian(truth_eci), -error_a_roe_m);
   c.P_rv = coarse_orbit_covariance_rv(c.x_eci, sigma_a_roe_m);
   return c;
 }

@@ -288,16 +288,7 @@ void SodFilter::adapt_process_noise() {
 
 TimeUpdateSummary SodFilter::time_update(TimeTT t) {
   TimeUpdateSummary s;
-  if (!initialized_) {
-    s.why = "filter not initialised";
-    return s;
-  }
-  s.dt_s = astro::seconds_between(t_, t);
-  if (s.dt_s == 0.0) {
-    s.usable = true;
-    return s;
-  }
-  adapt_process_noise();
+  if (!begin_time_update(t, s)) return s;
   const int n = layout_.size(), m = 2 * n + 1;
   MatrixXd X;
   if (!sigma_points(X)) {
@@ -344,31 +335,13 @@ TimeUpdateSummary SodFilter::time_update(TimeTT t) {
   VectorXd mean;
   MatrixXd P;
   mean_and_covariance(Y, mean, P);
-  P.diagonal() += q_ * std::abs(s.dt_s);
-  if (!store(mean, P)) {
-    s.why = "predicted covariance not positive definite (or state not finite)";
-    return s;
-  }
-  t_ = t;
-  last_dt_s_ = std::abs(s.dt_s);
-  ++steps_without_update_;
-  for (auto& c : counters_) ++c.steps_without_update;
-  s.usable = true;
+  finish_time_update(t, mean, std::move(P), s);
   return s;
 }
 
 TimeUpdateSummary SodFilter::predict_linearised(TimeTT t) {
   TimeUpdateSummary s;
-  if (!initialized_) {
-    s.why = "filter not initialised";
-    return s;
-  }
-  s.dt_s = astro::seconds_between(t_, t);
-  if (s.dt_s == 0.0) {
-    s.usable = true;
-    return s;
-  }
-  adapt_process_noise();
+  if (!begin_time_update(t, s)) return s;
   const int n = layout_.size();
   VectorXd x = x_;
   MatrixXd Phi = MatrixXd::Identity(n, n);
@@ -399,17 +372,38 @@ TimeUpdateSummary SodFilter::predict_linearised(TimeTT t) {
   MatrixXd Y = x;
   apply_aux_dynamics(x_aux, Y, s.dt_s);
   MatrixXd P = Phi * P_ * Phi.transpose();
+  finish_time_update(t, Y.col(0), std::move(P), s);
+  return s;
+}
+
+// Shared by both predictions: nothing to do at dt = 0; the adaptive noise of
+// the last update (true: go on).
+bool SodFilter::begin_time_update(TimeTT t, TimeUpdateSummary& s) {
+  if (!initialized_) {
+    s.why = "filter not initialised";
+    return false;
+  }
+  s.dt_s = astro::seconds_between(t_, t);
+  if (s.dt_s == 0.0) {
+    s.usable = true;
+    return false;
+  }
+  adapt_process_noise();
+  return true;
+}
+
+// Q |dt| added, the prediction stored, the step counted.
+void SodFilter::finish_time_update(TimeTT t, const VectorXd& mean, MatrixXd P, TimeUpdateSummary& s) {
   P.diagonal() += q_ * std::abs(s.dt_s);
-  if (!store(Y.col(0), P)) {
+  if (!store(mean, P)) {
     s.why = "predicted covariance not positive definite (or state not finite)";
-    return s;
+    return;
   }
   t_ = t;
   last_dt_s_ = std::abs(s.dt_s);
   ++steps_without_update_;
   for (auto& c : counters_) ++c.steps_without_update;
   s.usable = true;
-  return s;
 }
 
 void SodFilter::apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) const {

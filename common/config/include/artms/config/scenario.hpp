@@ -121,6 +121,9 @@ struct ObserverConfig {
   // diy] in m; the launcher draws the error (seeded) and uplinks the orbit with
   // this covariance. SCHEMA.md, observers[].coarse_orbit.
   astro::Vec6 coarse_orbit_sigma_a_roe_m = (astro::Vec6() << 20.0, 5000.0, 500.0, 500.0, 500.0, 500.0).finished();
+  // Optional: the error itself (same units) instead of a draw, for a
+  // scenario that reproduces a given degradation (the paper's 03/24/24 case).
+  std::optional<astro::Vec6> coarse_orbit_error_a_roe_m;
 };
 
 struct LinkOutage {

@@ -154,6 +154,7 @@ class Observer {
   std::deque<bus::CameraFrame> held_frames_;
   std::vector<PendingDirect> pending_direct_;
   std::optional<Fix> last_fix_;
+  std::optional<astro::TimeTT> gnss_outage_since_;  // the first invalid fix of the outage under way
   bool announced_ = false;
   bool samus_flushed_ = false;
 

@@ -71,5 +71,8 @@ astro::Mat6 coarse_orbit_covariance_rv(const astro::StateVector& x_eci, const as
 // N(0, diag(sigma_a_roe_m^2)) / a, with the covariance above.
 CoarseOrbit draw_coarse_orbit(const astro::StateVector& truth_eci, const astro::Vec6& sigma_a_roe_m,
                               std::mt19937_64& rng);
+// The same with a given error (a * ROE of truth relative to the result, m).
+CoarseOrbit coarse_orbit_with_error(const astro::StateVector& truth_eci, const astro::Vec6& sigma_a_roe_m,
+                                    const astro::Vec6& error_a_roe_m);
 
 }  // namespace artms::sod

@@ -355,6 +355,8 @@ class SodFilter {
   // Symmetrises P, checks x finite and P positive definite, wraps and keeps
   // both; false (nothing changed) otherwise.
   bool store(VectorXd x, MatrixXd P);
+  bool begin_time_update(TimeTT t, TimeUpdateSummary& s);
+  void finish_time_update(TimeTT t, const VectorXd& mean, MatrixXd P, TimeUpdateSummary& s);
   // Time update to a measurement epoch; false with s.why set on failure.
   bool advance_to(TimeTT t, UpdateSummary& s);
   void adapt_process_noise();

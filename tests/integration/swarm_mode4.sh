@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Navigation mode 4 (issue 18): starling_it_mode4.yaml, three observers, no GNSS.
+#  1. Real processes on Cyclone DDS, 1 h: every observer's telemetry and ISL
+#     broadcasts carry source 4 (bearings only) from the first step, no GNSS
+#     fix of an observer is produced, SOD starts from the uplinked coarse orbit.
+#  2. In-process, 12 h seed 7: SV4's absolute position error falls from
+#     ~6.9 km to below half of it, never beyond 4 sigma in any RTN axis, and
+#     every pair's dlambda error ends within 1 % of range.
+set -euo pipefail
+BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
+rm -rf "$WORK"; mkdir -p "$WORK"
+export CYCLONEDDS_URI=${CYCLONEDDS_URI:-file://$SRC/config/cyclonedds-loopback.xml}
+"$BIN/artms-swarm" run "$SRC/config/swarms/starling_it_mode4.yaml" --duration 1h --seed 7 \
+  --no-report --out "$WORK/dds" > "$WORK/dds.out" 2>&1 || { tail -30 "$WORK/dds.out"; exit 1; }
+"$BIN/artms-swarm" run "$SRC/config/swarms/starling_it_mode4.yaml" --in-process --duration 12h --seed 7 \
+  --no-report --out "$WORK/inproc" > "$WORK/inproc.out" 2>&1 || { tail -30 "$WORK/inproc.out"; exit 1; }
+/usr/bin/python3 - "$WORK" <<'PY'
+import csv, json, sys
+work = sys.argv[1]
+for obs in ("SV2", "SV3", "SV4"):
+    rows = list(csv.DictReader(open(f"{work}/dds/nav/{obs}.csv")))
+    assert rows and all(r["source"] == "4" and r["mode"] == "4" for r in rows), (obs, rows[:2])
+gnss = [r for r in csv.DictReader(open(f"{work}/dds/gnss.csv")) if r["valid"] == "1"]
+assert not gnss, gnss[:2]
+isl = list(csv.DictReader(open(f"{work}/dds/isl.csv")))
+assert isl and all(r["source"] == "4" for r in isl), isl[:2]
+log = open(f"{work}/dds/events.log").read()
+assert log.count("SOD initialised at the uplinked coarse orbit") == 3, log[:2000]
+s = json.load(open(f"{work}/inproc/summary.json"))["observers"]
+a = s["SV4"]["absolute"]
+print(f"SV4 absolute: {a['initial_position_error_m']:.0f} m -> {a['final_pos_error_m']:.0f} m "
+      f"(1-sigma {a['final_pos_sigma_m']:.0f} m), max |error|/sigma {a['max_rtn_error_over_sigma']:.2f}")
+assert 5000 < a["initial_position_error_m"] < 9000, a
+assert a["final_pos_error_m"] < 0.5 * a["initial_position_error_m"], a
+assert a["max_rtn_error_over_sigma"] < 4.0, a
+assert a["angles_only_fraction"] == 1.0, a
+for obs, o in s.items():
+    for tgt, t in o["targets"].items():
+        print(f"{obs}->{tgt}: dlambda error {t['final_dlambda_error_pct']:.3f} % of range")
+        assert t["final_dlambda_error_pct"] <= 1.0, (obs, tgt, t)
+print("swarm_mode4: ok")
+PY
