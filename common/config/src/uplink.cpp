@@ -180,7 +180,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"time_tag_sigma_s", u.tuning.sod.time_tag_sigma_s},
           {"time_tag_drift_sigma_ppm", u.tuning.sod.time_tag_drift_sigma_ppm},
           {"estimate_ballistic", u.tuning.sod.estimate_ballistic},
-          {"ballistic_sigma_fraction", u.tuning.sod.ballistic_sigma_fraction}}}}},
+          {"ballistic_sigma_fraction", u.tuning.sod.ballistic_sigma_fraction},
+          {"observer_acceleration_sigma_mps2", u.tuning.sod.observer_acceleration_sigma_mps2}}}}},
       {"crosslink",
        {{"enabled", u.crosslink_enabled}, {"period_s", u.isl_period_s},
         {"latency_s", u.isl_latency_s}, {"swarm_max_cadence_s", u.swarm_max_cadence_s},
@@ -306,6 +307,7 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.time_tag_drift_sigma_ppm = sod.at("time_tag_drift_sigma_ppm").get<double>();
     u.tuning.sod.estimate_ballistic = sod.at("estimate_ballistic").get<bool>();
     u.tuning.sod.ballistic_sigma_fraction = sod.at("ballistic_sigma_fraction").get<double>();
+    u.tuning.sod.observer_acceleration_sigma_mps2 = sod.value("observer_acceleration_sigma_mps2", 0.0);
     const auto& c = j.at("crosslink");
     u.crosslink_enabled = c.at("enabled").get<bool>();
     u.isl_period_s = c.at("period_s").get<double>();

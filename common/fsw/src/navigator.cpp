@@ -364,6 +364,13 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
     sod::StateLayout layout{n, 0};
     layout.n_time_tag = st.time_tag == TT::kNone ? 0 : st.time_tag == TT::kOffset ? 1 : 2;
     layout.ballistic = st.estimate_ballistic;
+    // The onboard model's expected error on the observer's own orbit (an
+    // unmodelled acceleration correlated over one orbit): the process noise
+    // where it exceeds the built-in one (mode 4 has no GNSS to correct it).
+    if (st.observer_acceleration_sigma_mps2 > 0.0) {
+      sod_opt_.q_observer = sod_opt_.q_observer.cwiseMax(sod::observer_process_noise_from_acceleration(
+          obs.a_m, obs.i_rad, st.observer_acceleration_sigma_mps2, astro::orbit_period_s(obs.a_m)));
+    }
     // One nominal for every target (the filter propagates them alike): the
     // first target's uplinked properties; a target that differs is left to
     // its differential ballistic state.

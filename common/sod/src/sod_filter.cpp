@@ -94,6 +94,20 @@ void SodOptions::validate() const {
   require(health.max_a_roe_m > 0.0, "health.max_a_roe_m", "must be > 0");
 }
 
+Vec6 observer_process_noise_from_acceleration(double a_m, double i_rad, double sigma_acc_mps2, double tau_s) {
+  if (!(a_m > 0.0) || !(sigma_acc_mps2 >= 0.0) || !(tau_s >= 0.0)) {
+    throw std::invalid_argument("observer_process_noise_from_acceleration: a > 0, sigma >= 0 and tau >= 0 expected");
+  }
+  const double n = std::sqrt(astro::kGmEarth_m3ps2 / (a_m * a_m * a_m));
+  const double q_v = 2.0 * sigma_acc_mps2 * sigma_acc_mps2 * tau_s;
+  const double na2 = std::pow(n * a_m, 2);
+  const double s2 = std::max(std::pow(std::sin(i_rad), 2), 1e-6);
+  Vec6 q;
+  q << std::pow(2.0 / n, 2) * q_v, 2.5 / na2 * q_v, 2.5 / na2 * q_v, 0.5 / na2 * q_v, 0.5 / (na2 * s2) * q_v,
+      4.0 / na2 * q_v;
+  return q;
+}
+
 double chi2_quantile(int dof, double p) {
   if (dof < 1) throw std::invalid_argument("chi2_quantile: dof must be >= 1");
   if (!(p > 0.0 && p < 1.0)) throw std::invalid_argument("chi2_quantile: p must be in (0, 1)");

@@ -453,6 +453,22 @@ TEST(SodApriori, GrowsWithAgeAndDrawsMatchCovariance) {
   EXPECT_NEAR(C(0, 1) / std::sqrt(C(0, 0) * C(1, 1)), rho, 0.03);
 }
 
+TEST(SodProcessNoise, UnmodelledAccelerationThroughGaussEquations) {
+  // Oracle: a constant along-track acceleration f over dt raises a by
+  // 2 f dt / n (Gauss); as white noise of PSD 2 sigma^2 tau its variance rate
+  // is (2/n)^2 2 sigma^2 tau.
+  const double a = 6945e3, i = 99.4 * M_PI / 180.0, sigma = 1.5e-7, tau = 5760.0;
+  const Vec6 q = observer_process_noise_from_acceleration(a, i, sigma, tau);
+  const double n = std::sqrt(astro::kGmEarth_m3ps2 / (a * a * a));
+  EXPECT_NEAR(q[0], std::pow(2.0 / n, 2) * 2.0 * sigma * sigma * tau, 1e-12 * q[0]);
+  EXPECT_NEAR(q[0], 8.9e-4, 0.3e-4);  // m^2/s: ~22 x SodOptions' built-in 4e-5
+  EXPECT_DOUBLE_EQ(q[1], q[2]);
+  EXPECT_NEAR(q[5] / q[1], 4.0 / 2.5, 1e-12);
+  EXPECT_GT(q[4], q[3]);  // RAAN: 1 / sin^2 i
+  EXPECT_TRUE(observer_process_noise_from_acceleration(a, i, 0.0, tau).isZero());
+  EXPECT_THROW(observer_process_noise_from_acceleration(-1.0, i, sigma, tau), std::invalid_argument);
+}
+
 TEST(SodCoarseOrbit, DrawsMatchTheirCartesianCovariance) {
   // Mode 4's coarse orbit: the error drawn as a*ROE of truth relative to the
   // uplinked orbit has the requested 1-sigma, and the Cartesian covariance

@@ -192,6 +192,12 @@ struct SodTuning {
   // true one times the density's error, and Harris-Priester's mean table is
   // 2-4 x too thin at high solar activity (docs/sod.md).
   double ballistic_sigma_fraction = 2.0;
+  // The onboard model's unmodelled acceleration on the observer's own orbit
+  // (1-sigma per RTN axis, m/s^2; correlated over one orbit): the observer's
+  // process noise where it exceeds the built-in one (sod::
+  // observer_process_noise_from_acceleration). 0: the built-in only (GNSS
+  // corrects the orbit); mode 4 needs the budget (docs/sod.md).
+  double observer_acceleration_sigma_mps2 = 0.0;
 };
 struct ArtmsTuning {
   ImpTuning imp;

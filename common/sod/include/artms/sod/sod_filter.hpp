@@ -123,6 +123,17 @@ struct SodOptions {
   void validate() const;
 };
 
+// The observer's process noise (SodOptions::q_observer units: QNS element
+// variance rates, order a, ex, ey, i, RAAN, u) of an unmodelled acceleration
+// with 1-sigma sigma_acc per RTN axis and correlation time tau, seen as white
+// noise of PSD q_v = 2 sigma^2 tau on the velocity and mapped through Gauss's
+// variational equations of a near-circular orbit (Montenbruck & Gill 2000,
+// eq. 3.98; u-averaged): da = (2/n) dv_T; d(ex, ey) = (2 cos u dv_T + sin u
+// dv_R)/(n a) -> 2.5/(n a)^2; di = cos u dv_N/(n a) -> 0.5/(n a)^2;
+// dRAAN = sin u dv_N/(n a sin i) -> 0.5/(n a sin i)^2; du = -2 dv_R/(n a) -> 4/(n a)^2.
+// Throws std::invalid_argument for a non-positive a or a negative sigma or tau.
+Vec6 observer_process_noise_from_acceleration(double a_m, double i_rad, double sigma_acc_mps2, double tau_s);
+
 // Quantile of the chi-square distribution with `dof` degrees of freedom at
 // probability p (Wilson & Hilferty 1931 cube-root normal approximation; within
 // 0.5 % of the exact quantile for dof >= 10 and p in [0.9, 1 - 1e-6]).
