@@ -83,7 +83,7 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
       if (!fs::exists(path)) continue;
       struct Abs {
         std::vector<double> t_s, pos, sig_pos, nees;
-        std::vector<astro::Vec3> e_rtn, s_rtn;
+        std::vector<astro::Vec3> e_rtn, s_rtn, e_vrtn, s_vrtn;
         std::vector<astro::Vec6> e_oe, s_oe;
         std::vector<int> source;
       } a;
@@ -165,6 +165,8 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
           a.nees.push_back(nees);
           a.e_rtn.push_back(e_rtn);
           a.s_rtn.push_back(s_rtn);
+          a.e_vrtn.push_back(e_vrtn);
+          a.s_vrtn.push_back(s_vrtn);
           a.e_oe.push_back(e_oe);
           a.s_oe.push_back(s_oe);
           a.source.push_back(static_cast<int>(nav.integer(k, "source")));
@@ -182,6 +184,8 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
       j["initial_position_sigma_m"] = a.sig_pos.front();
       j["final_error_rtn_m"] = std::vector<double>(a.e_rtn.back().data(), a.e_rtn.back().data() + 3);
       j["final_sigma_rtn_m"] = std::vector<double>(a.s_rtn.back().data(), a.s_rtn.back().data() + 3);
+      j["final_error_rtn_mps"] = std::vector<double>(a.e_vrtn.back().data(), a.e_vrtn.back().data() + 3);
+      j["final_sigma_rtn_mps"] = std::vector<double>(a.s_vrtn.back().data(), a.s_vrtn.back().data() + 3);
       j["final_error_a_oe_m"] = std::vector<double>(a.e_oe.back().data(), a.e_oe.back().data() + 6);
       j["final_sigma_a_oe_m"] = std::vector<double>(a.s_oe.back().data(), a.s_oe.back().data() + 6);
       j["a_oe_names"] = {"a", "u", "ex", "ey", "i", "raan"};
