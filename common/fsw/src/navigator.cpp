@@ -130,6 +130,15 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   if (angles_only_ && !up.coarse_orbit) {
     throw std::invalid_argument("fsw::Navigator: navigation mode 4 needs the uplinked coarse_orbit (no GNSS)");
   }
+  if (angles_only_) {
+    // Mode 4: every prediction carries the observer's own absolute
+    // uncertainty (kilometres at first), so a track's first bearings tell the
+    // targets apart less well; binding asks for twice the bearings and a
+    // clearer margin (a 3-bearing binding took SV2's track for SV3 in one of
+    // ten 03/24/24-like runs, docs/sod.md).
+    opt_.association_min_measurements = std::max(opt_.association_min_measurements, 6);
+    opt_.association_ambiguity = std::max(opt_.association_ambiguity, 10.0);
+  }
   if (opt_.remote_hold_s < 0.0) opt_.remote_hold_s = remote_bearing_max_age_s(up);
   if (fuse_remote_) opt_.max_lag_s = std::max(opt_.max_lag_s, opt_.remote_hold_s);
   // The targets: those of the ground a-priori, else (mode 2) the uplinked
