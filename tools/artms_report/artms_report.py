@@ -418,6 +418,15 @@ def plot_observer(obs, rows, t0, period, out_dir):
     return path
 
 
+def save_figure(fig, out_dir, name, rect=None):
+    """tight_layout (leaving `rect` for a suptitle), write out_dir/name at DPI, close; the path."""
+    fig.tight_layout(**({"rect": rect} if rect else {}))
+    path = os.path.join(out_dir, name)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
 OE_NAMES = [("da", "a"), ("du", "u"), ("dex", "e_x"), ("dey", "e_y"), ("di", "i"), ("draan", r"\Omega")]
 
 
@@ -448,11 +457,7 @@ def plot_absolute(obs, rows, t0, period, out_dir):
     for ax in axes[-1]:
         ax.set_xlabel("hours since first row")
     fig.suptitle(f"{obs}: absolute orbit element errors (times a) and 1$\\sigma$", fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, 0.96))
-    path = os.path.join(out_dir, f"absolute_oe_{safe(obs)}.png")
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    written.append(path)
+    written.append(save_figure(fig, out_dir, f"absolute_oe_{safe(obs)}.png", rect=(0, 0, 1, 0.96)))
     fig, axes = plt.subplots(3, 1, figsize=(8.5, 7), sharex=True)
     for ax, axis in zip(axes, "RTN"):
         e, sg = c[f"err_{axis.lower()}_m"], c[f"sigma_{axis.lower()}_m"]
@@ -466,11 +471,7 @@ def plot_absolute(obs, rows, t0, period, out_dir):
     pe = np.sqrt(c["err_r_m"] ** 2 + c["err_t_m"] ** 2 + c["err_n_m"] ** 2)
     fig.suptitle(f"{obs}: absolute position error in its RTN frame: {fmt(first_finite(pe), '{:.0f}')} m at the "
                  f"start, {fmt(last_finite(pe), '{:.0f}')} m at the end", fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, 0.96))
-    path = os.path.join(out_dir, f"absolute_rtn_{safe(obs)}.png")
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    written.append(path)
+    written.append(save_figure(fig, out_dir, f"absolute_rtn_{safe(obs)}.png", rect=(0, 0, 1, 0.96)))
     return written
 
 
@@ -510,11 +511,7 @@ def plot_isl_received(run_dir, t0, out_dir):
         ax.grid(True, lw=0.3, alpha=0.6)
         ax.legend(fontsize=8, loc="upper left")
         ax.set_title(f"ISL bearings received by {receiver}, per link", fontsize=11)
-        fig.tight_layout()
-        path = os.path.join(out_dir, f"isl_received_{safe(receiver)}.png")
-        fig.savefig(path, dpi=DPI)
-        plt.close(fig)
-        written.append(path)
+        written.append(save_figure(fig, out_dir, f"isl_received_{safe(receiver)}.png"))
     return written
 
 
