@@ -7,7 +7,11 @@
 #     bod/SV2.csv records the attempt that did it and its residual curve;
 #  2. starling_pse_burn_large.yaml 11 h: SV2 burns 0.5 m/s along-track at
 #     08:00; SV4's navigator names health check 1 and re-initialises SV2 from
-#     BOD before 11:00 (two BOD periods).
+#     BOD before 11:00 (two BOD periods);
+#  3. starling_pse_bod_two.yaml 4 h with the flight-like photometry: SV3 at
+#     ~155 km is too faint in every frame; SV4's navigator says at each BOD
+#     attempt that SV3 still waits for BOD, and summary.json gives SV3 an
+#     entry "never estimated" with the frames' reasons (nothing silent).
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -15,6 +19,10 @@ rm -rf "$WORK"; mkdir -p "$WORK"
   --no-report --out "$WORK/mode2" > "$WORK/mode2.out" 2>&1 || { tail -30 "$WORK/mode2.out"; exit 1; }
 "$BIN/artms-swarm" run "$SRC/config/swarms/starling_pse_burn_large.yaml" --in-process --duration 11h --seed 7 \
   --no-report --out "$WORK/burn" > "$WORK/burn.out" 2>&1 || { tail -30 "$WORK/burn.out"; exit 1; }
+sed 's/profile: nominal/profile: flight-like/' "$SRC/config/swarms/starling_pse_bod_two.yaml" > "$WORK/two_faint.yaml"
+grep -q "profile: flight-like" "$WORK/two_faint.yaml"
+"$BIN/artms-swarm" run "$WORK/two_faint.yaml" --in-process --duration 4h --seed 7 \
+  --no-report --out "$WORK/two_faint" > "$WORK/two_faint.out" 2>&1 || { tail -30 "$WORK/two_faint.out"; exit 1; }
 /usr/bin/python3 - "$WORK" <<'PY'
 import csv, json, sys
 work = sys.argv[1]
@@ -35,5 +43,12 @@ assert hits, "no health check 1 on SV2 after its burn"
 when = hits[0][11:16]
 print(f"burn: {hits[0][:160]}")
 assert "08:00" < when <= "11:00", when
+s3 = json.load(open(f"{work}/two_faint/summary.json"))["observers"]["SV4"]["targets"]
+assert s3["SV2"].get("estimated") is True, s3["SV2"]
+assert s3["SV3"]["estimated"] is False and s3["SV3"]["frames_visible"] == 0, s3["SV3"]
+assert "too faint" in s3["SV3"]["why"], s3["SV3"]
+waits = [l for l in open(f"{work}/two_faint/events.log") if "target SV3 still waits for BOD" in l]
+assert len(waits) >= 2, "no 'SV3 still waits for BOD' event at the BOD attempts"
+print(f"faint SV3: {s3['SV3']['why']}; {len(waits)} waiting events")
 print("swarm_bod: ok")
 PY

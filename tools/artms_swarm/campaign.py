@@ -523,7 +523,7 @@ def summarise(out, seeds, meta, failures):
                                    "seeds_min_at_least_0.99": sum(1 for m in mins if m is not None and m >= 0.99)},
             "initialisation": initialisation_entry(seeds, tg, meta.get("init_within_orbits")),
             "nees_mean_per_seed": [t.get("nees_mean") for t in tg],
-            "seeds_with_target": [s for s, t in zip(seeds, tg) if t],
+            "seeds_with_target": [s for s, t in zip(seeds, tg) if t and t.get("estimated", True)],
         })
         plot_errors(out, obs, tgt, seeds, tg)
         plot_initial_errors(out, obs, tgt, tg)

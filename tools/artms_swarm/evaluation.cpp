@@ -393,7 +393,51 @@ void evaluate_run(const config::Scenario& sc, const fs::path& dir, nlohmann::jso
     j["nis_updates"] = nis_updates;
     j["local_measurements"] = s.local;
     j["remote_measurements"] = s.remote;
+    j["estimated"] = true;
     summary["observers"][key.first]["targets"][key.second] = j;
+  }
+  // Targets an observer was to navigate and never estimated (mode 2: BOD
+  // never had a usable batch; modes 1 and 3: no a-priori reached SOD): an
+  // entry that says so, and why from the renderer's point of view.
+  std::map<std::pair<std::string, std::string>, std::map<std::string, long>> seen;  // (obs, tgt) -> reason -> frames
+  if (fs::exists(dir / "frames.csv")) {
+    try {
+      const auto frames = io::CsvTable::read((dir / "frames.csv").string());
+      for (std::size_t k = 0; k < frames.size(); ++k) {
+        const std::string reason = frames.text(k, "dropped") == "1" ? "dropped" : frames.text(k, "reason");
+        ++seen[{frames.text(k, "observer"), frames.text(k, "target")}][reason];
+      }
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "artms-swarm: evaluation: frames.csv unreadable (%s)\n", e.what());
+    }
+  }
+  for (const auto& o : sc.observers) {
+    if (o.mode < 1) continue;
+    for (const auto& s : sc.spacecraft) {
+      if (s.id == o.spacecraft) continue;
+      if (!o.targets.empty() && std::find(o.targets.begin(), o.targets.end(), s.id) == o.targets.end()) continue;
+      if (series.count({o.spacecraft, s.id})) continue;
+      nlohmann::json j;
+      j["estimated"] = false;
+      j["convergence_orbits"] = nullptr;
+      std::string why = "never estimated";
+      const auto f = seen.find({o.spacecraft, s.id});
+      if (f != seen.end()) {
+        long total = 0;
+        for (const auto& [r, n] : f->second) total += n;
+        why += "; the camera's frames: ";
+        bool first = true;
+        for (const auto& [r, n] : f->second) {
+          why += (first ? "" : ", ") + r + " " + std::to_string(n);
+          first = false;
+        }
+        why += " of " + std::to_string(total);
+        j["frames_visible"] = f->second.count("visible") ? f->second.at("visible") : 0L;
+        j["frames"] = total;
+      }
+      j["why"] = why;
+      summary["observers"][o.spacecraft]["targets"][s.id] = j;
+    }
   }
 }
 

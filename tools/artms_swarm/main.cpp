@@ -538,6 +538,10 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   for (const auto& [id, o] : summary["observers"].items()) {
     if (!o.contains("targets")) continue;
     for (const auto& [tid, t] : o["targets"].items()) {
+      if (!t.value("estimated", true)) {
+        std::printf("%-8s %-7s %s\n", id.c_str(), tid.c_str(), t.value("why", std::string("never estimated")).c_str());
+        continue;
+      }
       std::printf("%-8s %-7s %-12.1f %-16.2f %-16.2f %-11s %-9ld\n", id.c_str(), tid.c_str(),
                   t["final_range_m"].get<double>() / 1e3, t["final_dlambda_error_pct"].get<double>(),
                   t["final_dlambda_sigma_pct"].get<double>(),

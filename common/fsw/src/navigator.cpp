@@ -1195,6 +1195,19 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       set_target_from_bod(k, p.track, p.b, t_est, "initialised by BOD (no a-priori)");
     }
   }
+  // Targets still without an estimate after this attempt: say so (every BOD
+  // period), so that a target the camera never shows is not silent.
+  for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
+    if (has_estimate_[static_cast<std::size_t>(k)]) continue;
+    std::string text = "target " + target_ids_[static_cast<std::size_t>(k)] +
+                       " still waits for BOD: no usable solution of an unbound IMP track";
+    if (const auto w = range_window(k)) {
+      char win[96];
+      std::snprintf(win, sizeof win, " with its range in [%.0f, %.0f] km", (*w)[0] * 1e-3, (*w)[1] * 1e-3);
+      text += win;
+    }
+    messages_.push_back(text);
+  }
   if (attempted == 0) {
     char buf[160];
     std::snprintf(buf, sizeof buf, "BOD at %s: no IMP track with %d bearings in the latest %.1f orbits",
