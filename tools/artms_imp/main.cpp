@@ -1,11 +1,15 @@
-// artms-imp CAMERA.yaml FRAMES_DIR --out DIR (DESIGN.md section 7): runs IMP
-// offline over a folder of frames (16-bit PNG): per frame, detection,
+// artms-imp CAMERA.yaml FRAMES... --out DIR (DESIGN.md section 7): runs IMP
+// offline over frames (8- or 16-bit PNG or TIFF; a folder, files, or a
+// shell glob), stored as the camera file's sensor.bit_depth and
+// sensor.dn_shift_bits say: per frame, detection,
 // Pyramid star identification, attitude and the removal of hot pixels and
 // uncatalogued stars (imp::FrameProcessor); across frames, SAMUS tracking
 // (imp::Samus) with the observer orbit of --observer-orbit. Writes
 // attitude.csv, measurements.csv (every candidate; track_id -1 when no track
-// took it) and tracks.csv. Corrupt or unreadable frames are reported and
-// skipped.
+// took it), stars.csv (each identified star: centroid, catalog id,
+// residual) and tracks.csv. Corrupt or unreadable frames are reported with
+// their reason and skipped. Exit status 0 when at least one frame is solved,
+// 3 when none is, 2 on an error.
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -38,15 +42,29 @@ namespace {
 using namespace artms;
 namespace fs = std::filesystem;
 
+// A CSV field without separators or line breaks (reasons and file names).
+std::string csv_text(std::string s) {
+  for (char& c : s) {
+    if (c == ',' || c == '\n' || c == '\r' || c == '"') c = ';';
+  }
+  return s;
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"Run IMP's per-frame processing (detection, centroids, Pyramid star ID, attitude)\n"
                "over a folder of frames, then SAMUS tracking (with --observer-orbit).",
                "artms-imp"};
-  std::string camera_path, frames_dir, out;
+  std::string camera_path, out, time_utc;
+  std::vector<std::string> inputs;
   double vmag_limit = 6.5;
   app.add_option("camera", camera_path, "camera YAML (e.g. config/cameras/nst.yaml)")->required();
-  app.add_option("frames", frames_dir, "folder of frame_<k>.png (16-bit), with optional frame_<k>.json")
+  app.add_option("frames", inputs,
+                 "frames: folders (every .png/.tif/.tiff in them; only frame_<k>.png where there are such) and/or\nfiles, 8- or 16-bit gray; a frame "
+                 "<name>.png may have a sidecar <name>.json with t_tt_ns (or time_tag_tt_ns)")
       ->required();
+  app.add_option("--time", time_utc,
+                 "UTC of frames without a sidecar (e.g. 2019-07-29T20:47:26Z): the catalog's proper motion\n"
+                 "epoch and the time tag; without it and without sidecars the catalog stays at J2000 (warned)");
   app.add_option("--out", out, "output folder")->required();
   app.add_option("--vmag-limit", vmag_limit, "faintest catalog star used for identification")
       ->capture_default_str();
@@ -76,21 +94,63 @@ int run(int argc, char** argv) {
     const imp::Intrinsics K = fsw::intrinsics_from(calib);
     std::vector<fs::path> frames;
     const std::regex name(R"(frame_(\d+)\.png)");
-    for (const auto& e : fs::directory_iterator(frames_dir)) {
-      if (std::regex_match(e.path().filename().string(), name)) frames.push_back(e.path());
+    const auto is_image = [](const fs::path& p) {
+      std::string ext = p.extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+      return ext == ".png" || ext == ".tif" || ext == ".tiff";
+    };
+    for (const auto& in : inputs) {
+      if (fs::is_directory(in)) {
+        std::vector<fs::path> here;
+        for (const auto& e : fs::directory_iterator(in)) {
+          if (e.is_regular_file() && is_image(e.path())) here.push_back(e.path());
+        }
+        // A folder of artms-render's output (frame_<k>.png beside 8-bit
+        // preview_<k>.png): its frames only.
+        if (std::any_of(here.begin(), here.end(),
+                        [&](const fs::path& p) { return std::regex_match(p.filename().string(), name); })) {
+          std::erase_if(here, [&](const fs::path& p) { return !std::regex_match(p.filename().string(), name); });
+        }
+        std::sort(here.begin(), here.end());
+        frames.insert(frames.end(), here.begin(), here.end());
+      } else {
+        frames.emplace_back(in);  // a missing or unreadable file is reported as its frame's reason
+      }
     }
-    std::sort(frames.begin(), frames.end());
-    if (frames.empty()) throw std::runtime_error("no frame_<k>.png in " + frames_dir);
+    if (frames.empty()) throw std::runtime_error("no frames (.png, .tif, .tiff) in the given folders or files");
+    // Frame numbers: <k> of frame_<k>.png when every name has it, else the
+    // order given (folders sorted by name).
+    const bool numbered = std::all_of(frames.begin(), frames.end(), [&](const fs::path& p) {
+      return std::regex_match(p.filename().string(), name);
+    });
+    std::optional<astro::TimeTT> t_cli;
+    if (!time_utc.empty()) t_cli = astro::tt_from_utc_string(time_utc);
+    const auto sidecar_time = [&](const fs::path& path) -> std::optional<std::int64_t> {
+      fs::path side = path;
+      side.replace_extension(".json");
+      if (!fs::exists(side)) return std::nullopt;
+      try {
+        const auto j = nlohmann::json::parse(std::ifstream(side));
+        return j.contains("time_tag_tt_ns") ? j.at("time_tag_tt_ns").get<std::int64_t>()
+                                            : j.at("t_tt_ns").get<std::int64_t>();
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "artms-imp: %s: unreadable sidecar (%s)\n", side.c_str(), e.what());
+        return std::nullopt;
+      }
+    };
     // Catalog directions at the first frame's epoch (proper motion over a
     // run is far below the identification tolerance).
     astro::TimeTT t_cat = astro::tt_from_utc_string("2000-01-01T12:00:00Z");
-    {
-      fs::path side = frames.front();
-      side.replace_extension(".json");
-      if (fs::exists(side)) {
-        t_cat = astro::TimeTT{nlohmann::json::parse(std::ifstream(side)).at("t_tt_ns").get<std::int64_t>()};
-      }
+    if (const auto t0 = sidecar_time(frames.front())) {
+      t_cat = astro::TimeTT{*t0};
+    } else if (t_cli) {
+      t_cat = *t_cli;
+    } else {
+      std::fprintf(stderr,
+                   "artms-imp: warning: no time for the frames (no sidecar, no --time): the catalog stays at "
+                   "J2000 and time tags are 0; proper motion since then can cost tens of arcsec of roll\n");
     }
+    const int shift = calib.dn_shift_bits;
     const auto bsc = imaging::StarCatalog::load_bsc5(io::data_dir() + "/stars/bsc5.dat", vmag_limit);
     std::vector<imp::CatalogStar> stars;
     for (const auto& s : bsc.stars()) stars.push_back({s.catalog_id, s.unit_eci_at(t_cat)});
@@ -107,7 +167,9 @@ int run(int argc, char** argv) {
     fs::create_directories(out);
     std::ofstream att(fs::path(out) / "attitude.csv"), meas(fs::path(out) / "measurements.csv"),
         tracks(fs::path(out) / "tracks.csv");
-    att << "frame,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec\n";
+    std::ofstream star_rows(fs::path(out) / "stars.csv");
+    att << "frame,file,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec,why\n";
+    star_rows << "frame,file,x_px,y_px,catalog_id,residual_arcsec\n";
     meas << "frame,t_tt_ns,track_id,x_px,y_px,ux_eci,uy_eci,uz_eci,az_rad,el_rad,sigma_rad\n";
     tracks << "track_id,first_frame,last_frame,measurements,segments,fit_rms_arcsec\n";
     // Candidates per frame; the track that took each (SAMUS decides later).
@@ -129,22 +191,17 @@ int run(int argc, char** argv) {
     char line[512];
     for (std::size_t fi = 0; fi < frames.size(); ++fi) {
       const auto& path = frames[fi];
-      const int k = std::stoi(std::regex_replace(path.filename().string(), name, "$1"));
-      std::int64_t t_ns = 0;
-      fs::path side = path;
-      side.replace_extension(".json");
-      if (fs::exists(side)) {
-        try {
-          const auto j = nlohmann::json::parse(std::ifstream(side));
-          t_ns = j.contains("time_tag_tt_ns") ? j.at("time_tag_tt_ns").get<std::int64_t>()
-                                              : j.at("t_tt_ns").get<std::int64_t>();
-        } catch (const std::exception& e) {
-          std::fprintf(stderr, "artms-imp: %s: unreadable sidecar (%s); time tag 0\n", side.c_str(), e.what());
-        }
-      }
+      const int k = numbered ? std::stoi(std::regex_replace(path.filename().string(), name, "$1"))
+                             : static_cast<int>(fi);
+      const std::string file = csv_text(path.filename().string());
+      std::int64_t t_ns = t_cli ? t_cli->ns_since_j2000 : 0;
+      if (const auto ts = sidecar_time(path)) t_ns = *ts;
       imaging::Image16 img;
       try {
         img = imaging::read_png16(path.string());
+        if (shift > 0) {
+          for (auto& v : img.pixels) v = static_cast<std::uint16_t>(v >> shift);
+        }
         if (img.width != K.width || img.height != K.height) {
           throw std::runtime_error("size " + std::to_string(img.width) + "x" + std::to_string(img.height) +
                                    " does not match the camera");
@@ -152,25 +209,31 @@ int run(int argc, char** argv) {
       } catch (const std::exception& e) {
         ++corrupt;
         std::fprintf(stderr, "artms-imp: skipping %s: %s\n", path.c_str(), e.what());
-        std::snprintf(line, sizeof line, "%d,%lld,corrupt,,,,,0,,\n", k, static_cast<long long>(t_ns));
-        att << line;
+        std::snprintf(line, sizeof line, "%d,%s,%lld,corrupt,,,,,0,,,", k, file.c_str(), static_cast<long long>(t_ns));
+        att << line << csv_text(e.what()) << "\n";
         continue;
       }
       const imp::FrameSummary fr = processor.process(img.pixels, astro::TimeTT{t_ns});
       hot += fr.hot_pixels_removed;
       uncatalogued += fr.uncatalogued_stars_removed;
       if (!fr.attitude_usable) {
-        std::snprintf(line, sizeof line, "%d,%lld,%s,,,,,%d,,\n", k, static_cast<long long>(t_ns), fr.status.c_str(),
-                      fr.stars_matched);
-        att << line;
+        std::snprintf(line, sizeof line, "%d,%s,%lld,%s,,,,,%d,,,", k, file.c_str(), static_cast<long long>(t_ns),
+                      fr.status.c_str(), fr.stars_matched);
+        att << line << csv_text(fr.why) << "\n";
+        std::fprintf(stderr, "artms-imp: %s: %s (%s)\n", path.filename().c_str(), fr.status.c_str(), fr.why.c_str());
         continue;
       }
       ++solved;
       const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
-      std::snprintf(line, sizeof line, "%d,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f,%.3f\n", k,
+      std::snprintf(line, sizeof line, "%d,%s,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f,%.3f,\n", k, file.c_str(),
                     static_cast<long long>(t_ns), q[0], q[1], q[2], q[3], fr.stars_matched,
                     fr.residual_rms_rad / astro::kArcsecToRad, fr.attitude_sigma_rad / astro::kArcsecToRad);
       att << line;
+      for (const auto& st : fr.stars) {
+        std::snprintf(line, sizeof line, "%d,%s,%.4f,%.4f,%d,%.3f\n", k, file.c_str(), st.x_px, st.y_px, st.catalog_id,
+                      st.residual_rad / astro::kArcsecToRad);
+        star_rows << line;
+      }
       for (std::size_t i = 0; i < fr.candidates.size(); ++i) {
         row_of[{k, static_cast<int>(i)}] = rows.size();
         rows.push_back({k, t_ns, fr.candidates[i], -1});
@@ -219,6 +282,10 @@ int run(int argc, char** argv) {
                  samus ? (std::to_string(samus->tracks().size()) + " tracks").c_str()
                        : "no --observer-orbit: SAMUS tracking off");
     if (no_orbit > 0) std::fprintf(stderr, "artms-imp: %d frames outside the observer orbit file: not tracked\n", no_orbit);
+    if (solved == 0) {
+      std::fprintf(stderr, "artms-imp: no frame solved (attitude.csv gives each frame's reason)\n");
+      return 3;
+    }
   } catch (const std::exception& e) {
     std::cerr << "artms-imp: error: " << e.what() << "\n";
     return 2;

@@ -194,7 +194,9 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
         {"k1", u.camera_calibration.k1}, {"k2", u.camera_calibration.k2},
         {"psf_sigma_px", u.camera_calibration.psf_sigma_px},
         {"gain_e_per_dn", u.camera_calibration.gain_e_per_dn},
-        {"saturation_dn", u.camera_calibration.saturation_dn}}},
+        {"saturation_dn", u.camera_calibration.saturation_dn},
+        {"dn_shift_bits", u.camera_calibration.dn_shift_bits},
+        {"match_tolerance_rad", u.camera_calibration.match_tolerance_rad}}},
       {"star_catalog_file", u.star_catalog_file},
       {"apriori_age_days", u.apriori_age_days},
       {"coarse_orbit", coarse},
@@ -329,6 +331,8 @@ ObserverUplink read_uplink(const std::string& path) {
       cal.psf_sigma_px = k.at("psf_sigma_px").get<double>();
       cal.gain_e_per_dn = k.at("gain_e_per_dn").get<double>();
       cal.saturation_dn = k.at("saturation_dn").get<double>();
+      cal.dn_shift_bits = k.value("dn_shift_bits", 0);
+      cal.match_tolerance_rad = k.value("match_tolerance_rad", 0.0);
     }
     if (j.contains("star_catalog_file")) u.star_catalog_file = j.at("star_catalog_file").get<std::string>();
     if (j.contains("apriori_age_days")) u.apriori_age_days = j.at("apriori_age_days").get<double>();

@@ -53,6 +53,21 @@ TEST(Uplink, RoundTripsTheVariableAtmosphereAndOnboardProperties) {
   EXPECT_EQ(b.onboard_properties_by_id.size(), s.spacecraft.size());
 }
 
+TEST(Uplink, RoundTripsTheCameraEncodingAndMatchTolerance) {
+  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  ObserverUplink u = make_uplink(s, "SV4");
+  u.camera_calibration.width_px = 1024;
+  u.camera_calibration.height_px = 768;
+  u.camera_calibration.fx_px = u.camera_calibration.fy_px = 5116.0;
+  u.camera_calibration.dn_shift_bits = 4;
+  u.camera_calibration.match_tolerance_rad = 2.9e-4;
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_camera.json";
+  write_uplink(u, path);
+  const ObserverUplink b = read_uplink(path);
+  EXPECT_EQ(b.camera_calibration.dn_shift_bits, 4);
+  EXPECT_DOUBLE_EQ(b.camera_calibration.match_tolerance_rad, 2.9e-4);
+}
+
 TEST(Uplink, RoundTripsTheCoarseOrbitOfMode4) {
   const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
   ObserverUplink u = make_uplink(s, "SV4");

@@ -180,7 +180,7 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
 
   CameraModel cam;
   const auto top = rd.entries(
-      doc, "", {"name", "sensor", "optics", "photometry", "hot_pixels", "exclusion_deg"});
+      doc, "", {"name", "sensor", "optics", "photometry", "hot_pixels", "exclusion_deg", "star_id"});
   if (auto name = rd.text(top, "", "name")) cam.name = *name;
 
   // sensor: geometry (required) and detector parameters.
@@ -190,12 +190,14 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     const std::string p = "sensor";
     const auto e =
         rd.entries(node, p,
-                   {"width_px", "height_px", "pixel_pitch_um", "bit_depth", "gain_e_per_dn",
+                   {"width_px", "height_px", "pixel_pitch_um", "bit_depth", "dn_shift_bits", "gain_e_per_dn",
                     "full_well_e", "bias_dn", "read_noise_e", "dark_current_e_per_s"});
     cam.width_px = static_cast<int>(*rd.integer(e, node, p, "width_px", true, 1, 100000));
     cam.height_px = static_cast<int>(*rd.integer(e, node, p, "height_px", true, 1, 100000));
     cam.pixel_pitch_m = *rd.number(e, node, p, "pixel_pitch_um", true, positive, "> 0") * 1e-6;
     cam.bit_depth = static_cast<int>(*rd.integer(e, node, p, "bit_depth", true, 1, 16));
+    cam.dn_shift_bits = static_cast<int>(
+        rd.integer(e, node, p, "dn_shift_bits", false, 0, 16 - cam.bit_depth).value_or(0));
     cam.gain_e_per_dn =
         rd.number(e, node, p, "gain_e_per_dn", false, positive, "> 0").value_or(cam.gain_e_per_dn);
     cam.full_well_e =
@@ -271,6 +273,15 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     cam.hot_pixel_seed = static_cast<std::uint64_t>(
         rd.integer(e, node, p, "seed", false, 0, std::numeric_limits<long long>::max())
             .value_or(static_cast<long long>(cam.hot_pixel_seed)));
+  }
+
+  if (const YAML::Node node = Reader::child(top, "star_id"); node.IsDefined()) {
+    const std::string p = "star_id";
+    const auto e = rd.entries(node, p, {"match_tolerance_arcsec"});
+    if (auto a = rd.number(e, node, p, "match_tolerance_arcsec", false,
+                           [](double x) { return x > 0.0 && x <= 3600.0; }, "in (0, 3600]")) {
+      cam.match_tolerance_rad = *a * astro::kArcsecToRad;
+    }
   }
 
   if (const YAML::Node node = Reader::child(top, "exclusion_deg"); node.IsDefined()) {

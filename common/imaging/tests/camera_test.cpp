@@ -108,6 +108,26 @@ TEST(CameraModel, MinimalFileTakesDefaultsAndOverrides) {
   EXPECT_EQ(custom.max_dn(), 1023);
 }
 
+// Pixel encoding and identification tolerance of a real camera's frames
+// (issue 19): 12-bit data in 16-bit words, the shipped tetra3 sample file.
+TEST(CameraModel, PixelEncodingAndMatchToleranceKeys) {
+  EXPECT_EQ(CameraModel::parse(kMinimal, "cam.yaml").dn_shift_bits, 0);
+  EXPECT_DOUBLE_EQ(CameraModel::parse(kMinimal, "cam.yaml").match_tolerance_rad, 0.0);
+  const CameraModel cam = CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/tetra3_sample.yaml");
+  EXPECT_EQ(cam.bit_depth, 12);
+  EXPECT_EQ(cam.dn_shift_bits, 4);
+  EXPECT_EQ(cam.max_dn(), 4095);
+  EXPECT_NEAR(cam.match_tolerance_rad, 60.0 * astro::kArcsecToRad, 1e-15);
+  EXPECT_DOUBLE_EQ(cam.fx_px, 5116.0);
+  // 12 bits shifted by 5 do not fit a 16-bit word: the error names the key.
+  const std::string shift = parse_error(
+      "sensor: {width_px: 1280, height_px: 1024, pixel_pitch_um: 5.3, bit_depth: 12, dn_shift_bits: 5}\n"
+      "optics: {focal_length_mm: 30}\n");
+  EXPECT_NE(shift.find("sensor.dn_shift_bits"), std::string::npos) << shift;
+  const std::string tol = parse_error(std::string(kMinimal) + "star_id: {match_tolerance_arcsec: 0}\n");
+  EXPECT_NE(tol.find("star_id.match_tolerance_arcsec"), std::string::npos) << tol;
+}
+
 TEST(CameraModel, LoadErrorsNameFileLineColumnAndKey) {
   // Unknown (misspelt) key on line 4, column 3.
   const std::string typo = parse_error(

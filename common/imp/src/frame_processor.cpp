@@ -80,6 +80,13 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     if (!id.usable) id = identify_lost_in_space(dirs, catalog_, opt_.star_id);
   }
   out.status = !det.usable || dirs.size() < 3 ? "no_detections" : (id.usable ? "ok" : "not_identified");
+  if (!det.usable) {
+    out.why = det.why;
+  } else if (dirs.size() < 3) {
+    out.why = std::to_string(dirs.size()) + " detections (3 needed for identification)";
+  } else if (!id.usable) {
+    out.why = id.why;
+  }
   if (!id.usable) {
     prior_.reset();
     return out;
@@ -118,6 +125,16 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
   }
   prior_ = out.q_cam_from_eci;
   prior_t_s_ = t_s;
+  {
+    const Eigen::Matrix3d R_cam_from_eci = out.q_cam_from_eci.toRotationMatrix();
+    for (const auto& [idx, cat_id] : id.matches) {
+      const auto& c = det.centroids[order[static_cast<std::size_t>(idx)]];
+      const Eigen::Vector3d u_cat =
+          R_cam_from_eci * catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci;
+      const Eigen::Vector3d& u_meas = dirs[static_cast<std::size_t>(idx)];
+      out.stars.push_back({c.x_px, c.y_px, cat_id, std::atan2(u_meas.cross(u_cat).norm(), u_meas.dot(u_cat))});
+    }
+  }
 
   std::vector<bool> is_star(order.size(), false);
   for (const auto& [idx, cat] : id.matches) is_star[static_cast<std::size_t>(idx)] = true;

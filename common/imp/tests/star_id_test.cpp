@@ -357,7 +357,10 @@ TEST(StarId, TooFewStarsIsNotUsable) {
 // Real images (esa/tetra3 test data, /work/shared/data/images)
 // ---------------------------------------------------------------------------
 
-const std::string kImages = std::string(ARTMS_SHARED_DIR) + "/data/images";
+// The three labelled frames ship with the tests (tests/data/real_images);
+// the five unlabelled ones stay in the shared data folder.
+const std::string kImages = std::string(ARTMS_TEST_DATA_DIR) + "/real_images";
+const std::string kUnlabelled = std::string(ARTMS_SHARED_DIR) + "/data/images/unlabelled";
 
 // A ground camera of the tetra3 data set as a user would describe it: 35 mm
 // lens, 1024 x 768, focal length ~5116 px, principal point at the centre.
@@ -434,10 +437,7 @@ Vec3 radec_unit(double ra_deg, double dec_deg) {
 }
 
 TEST(StarIdRealImages, BoresightMatchesTheGroundSolution) {
-  if (!std::filesystem::exists(kImages + "/truth.json")) {
-    GTEST_SKIP() << "real images not found at " << kImages
-                 << " (the shared data folder sits beside the repository as ../shared)";
-  }
+  ASSERT_TRUE(std::filesystem::exists(kImages + "/truth.json")) << kImages << " (tests/data/real_images)";
   const auto truth = artms::testing::load_json(kImages + "/truth.json");
   int n = 0;
   for (const auto& [name, t] : truth.items()) {
@@ -506,12 +506,12 @@ TEST(StarIdRealImages, BoresightMatchesTheGroundSolution) {
 // (RA, Dec), to within the mount's pointing error (the ground solutions
 // themselves differ from their nominal alt/az by ~1-2 deg).
 TEST(StarIdRealImages, AllEightFramesAreSelfConsistent) {
-  if (!std::filesystem::exists(kImages + "/unlabelled")) {
-    GTEST_SKIP() << "real images not found at " << kImages
+  if (!std::filesystem::exists(kUnlabelled)) {
+    GTEST_SKIP() << "unlabelled real images not found at " << kUnlabelled
                  << " (the shared data folder sits beside the repository as ../shared)";
   }
   std::vector<std::string> files;
-  for (const auto& dir : {kImages, kImages + "/unlabelled"}) {
+  for (const auto& dir : {kImages, kUnlabelled}) {
     for (const auto& e : std::filesystem::directory_iterator(dir)) {
       if (e.path().extension() == ".png") files.push_back(e.path().string());
     }

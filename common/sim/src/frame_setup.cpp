@@ -81,6 +81,8 @@ config::CameraCalibration calibration_from(const imaging::CameraModel& cam) {
   c.psf_sigma_px = cam.psf_sigma_px;
   c.gain_e_per_dn = cam.gain_e_per_dn;
   c.saturation_dn = cam.max_dn();
+  c.dn_shift_bits = cam.dn_shift_bits;
+  c.match_tolerance_rad = cam.match_tolerance_rad;
   return c;
 }
 

@@ -25,6 +25,8 @@ struct CameraCalibration {
   double psf_sigma_px = 1.2;
   double gain_e_per_dn = 2.4;
   double saturation_dn = 4095.0;
+  int dn_shift_bits = 0;             // stored value = DN * 2^dn_shift_bits (camera file sensor.dn_shift_bits)
+  double match_tolerance_rad = 0.0;  // star identification; 0: IMP's default
   [[nodiscard]] bool present() const { return width_px > 0 && height_px > 0 && fx_px > 0.0 && fy_px > 0.0; }
 };
 

@@ -34,6 +34,13 @@ struct CameraModel {
   double pixel_pitch_m = 5.3e-6;
   double focal_length_m = 30e-3;
   int bit_depth = 12;
+  // Pixel encoding of stored frames: values shifted up by this many bits
+  // (12-bit data in 16-bit words, MSB-aligned: 4). Readers divide by
+  // 2^dn_shift_bits to get DN; the renderer writes DN (0).
+  int dn_shift_bits = 0;
+  // Star identification: a measured and a catalog direction match within
+  // this angle (uncalibrated distortion, refraction); 0: IMP's default.
+  double match_tolerance_rad = 0.0;
   // Focal lengths in pixels, fx = fy = f / pitch unless the file says otherwise.
   double fx_px = 30e-3 / 5.3e-6;
   double fy_px = 30e-3 / 5.3e-6;

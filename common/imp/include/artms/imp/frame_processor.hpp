@@ -91,6 +91,16 @@ struct FrameProcessorOptions {
 struct FrameSummary {
   bool attitude_usable = false;
   std::string status;  // "ok", "no_detections", "not_identified"
+  std::string why;     // the reason when not "ok" (detection's or identification's own)
+  // The identified stars: centroid (pixels), catalog id, and the angle
+  // between the measured direction and the catalog direction rotated by
+  // the solved attitude.
+  struct IdentifiedStar {
+    double x_px = 0.0, y_px = 0.0;
+    int catalog_id = 0;
+    double residual_rad = 0.0;
+  };
+  std::vector<IdentifiedStar> stars;
   Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
   int stars_matched = 0;
   double residual_rms_rad = 0.0;   // RMS angle, identified stars vs rotated catalog
