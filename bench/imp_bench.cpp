@@ -14,6 +14,7 @@
 #include "artms/astro/constants.hpp"
 #include "artms/astro/frames.hpp"
 #include "artms/astro/time.hpp"
+#include "artms/imaging/image.hpp"
 #include "artms/imaging/renderer.hpp"
 #include "artms/imp/detection.hpp"
 #include "artms/imp/frame_processor.hpp"
@@ -326,5 +327,74 @@ void BM_BuildStarIdCatalog(benchmark::State& state) {
 BENCHMARK(BM_BuildStarIdCatalog)->Unit(benchmark::kMillisecond);
 
 }  // namespace
+
+// The three labelled tetra3 photographs (tests/data/real_images; 1024 x
+// 768, 12-bit data in 16-bit words) with config/cameras/tetra3_sample.yaml:
+// detection and centroiding, then Pyramid lost in space, per frame (issue
+// 19, acceptance 3: tetra3 publishes 1.0-1.1 s of extraction and 2.5-15 ms
+// of solve on these frames).
+struct RealFrames {
+  imaging::CameraModel cam;
+  std::vector<imaging::Image16> images;
+  imp::StarIdCatalog catalog;
+  imp::DetectionOptions det;
+  imp::StarIdOptions id;
+};
+
+const RealFrames& real_frames() {
+  static const RealFrames r = [] {
+    const auto cam = imaging::CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/tetra3_sample.yaml");
+    std::vector<imaging::Image16> images;
+    for (const char* name : {"tetra3_2019-07-29T204726_Alt40_Azi-135_Try1.png",
+                             "tetra3_2019-07-29T204726_Alt40_Azi45_Try1.png",
+                             "tetra3_2019-07-29T204726_Alt60_Azi135_Try1.png"}) {
+      auto img = imaging::read_png16(std::string(ARTMS_TEST_DATA_DIR) + "/real_images/" + name);
+      for (auto& v : img.pixels) v = static_cast<std::uint16_t>(v >> cam.dn_shift_bits);
+      images.push_back(std::move(img));
+    }
+    const auto t = astro::tt_from_utc_string("2019-07-29T20:47:26Z");
+    std::vector<imp::CatalogStar> stars;
+    for (const auto& s : bsc5().stars()) {
+      if (s.vmag <= 6.5) stars.push_back({s.catalog_id, s.unit_eci_at(t)});
+    }
+    auto catalog = imp::StarIdCatalog::build(std::move(stars), 2.0 * intrinsics(cam).half_diagonal_fov_rad());
+    imp::DetectionOptions det;
+    det.psf_sigma_px = cam.psf_sigma_px;
+    det.gain_e_per_dn = cam.gain_e_per_dn;
+    det.saturation_dn = cam.max_dn();
+    imp::StarIdOptions id;
+    id.match_tolerance_rad = cam.match_tolerance_rad;
+    return RealFrames{cam, std::move(images), std::move(catalog), det, id};
+  }();
+  return r;
+}
+
+void BM_RealFrameDetectAndLostInSpace(benchmark::State& state) {
+  const auto& r = real_frames();
+  const auto k = intrinsics(r.cam);
+  std::size_t i = 0;
+  int solved = 0, runs = 0;
+  for (auto _ : state) {
+    const auto& img = r.images[i++ % r.images.size()];
+    const auto d = imp::detect(img.pixels, img.width, img.height, r.det);
+    std::vector<Eigen::Vector3d> b;
+    for (const auto& c : d.centroids) b.push_back(k.unproject(imp::Vec2(c.x_px, c.y_px)));
+    if (state.range(0) == 1) {
+      const auto id = imp::identify_lost_in_space(b, r.catalog, r.id);
+      solved += id.usable ? 1 : 0;
+      benchmark::DoNotOptimize(id.q_cam_from_eci.coeffs().data());
+    }
+    ++runs;
+    benchmark::DoNotOptimize(b.data());
+  }
+  if (state.range(0) == 1) state.counters["solved_fraction"] = runs ? static_cast<double>(solved) / runs : 0.0;
+}
+BENCHMARK(BM_RealFrameDetectAndLostInSpace)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("with_lost_in_space")
+    ->Unit(benchmark::kMillisecond)
+    ->Repetitions(5)
+    ->ReportAggregatesOnly(true);
 
 BENCHMARK_MAIN();

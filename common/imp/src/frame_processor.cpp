@@ -39,10 +39,13 @@ void FrameProcessorOptions::validate() const {
   if (!(blend_radius_px >= 0.0)) throw std::invalid_argument("FrameProcessorOptions.blend_radius_px out of range");
   if (!(blend_sigma_px >= 0.0)) throw std::invalid_argument("FrameProcessorOptions.blend_sigma_px out of range");
   if (!(blend_chi2_z > 0.0)) throw std::invalid_argument("FrameProcessorOptions.blend_chi2_z out of range");
+  if (!(focal_search_fraction >= 0.0 && focal_search_fraction < 0.5)) {
+    throw std::invalid_argument("FrameProcessorOptions.focal_search_fraction out of range [0, 0.5)");
+  }
 }
 
 FrameProcessor::FrameProcessor(Intrinsics intrinsics, const StarIdCatalog& catalog, FrameProcessorOptions options)
-    : K_(intrinsics), catalog_(catalog), opt_(std::move(options)) {
+    : K_(intrinsics), K_nominal_(intrinsics), catalog_(catalog), opt_(std::move(options)) {
   K_.validate();
   opt_.validate();
 }
@@ -72,13 +75,45 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
   for (auto i : order) dirs.push_back(K_.unproject({det.centroids[i].x_px, det.centroids[i].y_px}));
   if (prior_ && std::abs(t_s - prior_t_s_) > opt_.prior_max_age_s) prior_.reset();
   StarIdResult id;
+  bool found_by_search = false;
   if (det.usable && dirs.size() >= 3) {
     if (prior_) {
       id = identify_with_prior(dirs, catalog_, *prior_, opt_.tracking_tolerance_rad, opt_.star_id);
       out.used_prior = id.usable;
     }
     if (!id.usable) id = identify_lost_in_space(dirs, catalog_, opt_.star_id);
+    if (!id.usable && opt_.focal_search_fraction > 0.0) {
+      const StarIdResult nominal = id;
+      std::vector<Eigen::Vector2d> px;
+      px.reserve(order.size());
+      for (auto i : order) px.emplace_back(det.centroids[i].x_px, det.centroids[i].y_px);
+      if (search_focal_length(px, dirs, id)) {
+        found_by_search = true;
+      } else {
+        id = nominal;
+        id.why += "; also with the focal length scaled within +-" +
+                  std::to_string(static_cast<int>(std::lround(100.0 * opt_.focal_search_fraction))) + " %";
+      }
+    }
   }
+  if (id.usable && opt_.focal_search_fraction > 0.0 && !found_by_search && focal_scale_ != 1.0) {
+    // The camera file's focal length failed on an earlier frame: every frame
+    // identified since gets its own scale (tetra3 fits a field of view per
+    // image); a camera file that identifies is trusted as it is.
+    std::vector<Eigen::Vector2d> px;
+    px.reserve(order.size());
+    for (auto i : order) px.emplace_back(det.centroids[i].x_px, det.centroids[i].y_px);
+    const double s_frame = refine_focal_scale(px, id, focal_scale_);
+    if (std::abs(s_frame - 1.0) <= opt_.focal_search_fraction) {
+      focal_scale_ = s_frame;
+      K_ = K_nominal_;
+      K_.fx *= focal_scale_;
+      K_.fy *= focal_scale_;
+      dirs.clear();
+      for (const auto& p : px) dirs.push_back(K_.unproject(p));
+    }
+  }
+  out.focal_scale = focal_scale_;
   out.status = !det.usable || dirs.size() < 3 ? "no_detections" : (id.usable ? "ok" : "not_identified");
   if (!det.usable) {
     out.why = det.why;
@@ -261,6 +296,113 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   if (star) return refuse("a faint star (same inertial direction as an earlier aided detection)");
   if (why) why->clear();
   return cand;
+}
+
+std::vector<Eigen::Vector3d> FrameProcessor::directions_at(const std::vector<Eigen::Vector2d>& px, double scale) const {
+  Intrinsics K = K_nominal_;
+  K.fx *= scale;
+  K.fy *= scale;
+  std::vector<Eigen::Vector3d> d;
+  d.reserve(px.size());
+  for (const auto& p : px) d.push_back(K.unproject(p));
+  return d;
+}
+
+double FrameProcessor::scale_residual_rad(const std::vector<Eigen::Vector2d>& px, const StarIdResult& r,
+                                          double scale) const {
+  const std::vector<Eigen::Vector3d> ds = directions_at(px, scale);
+  std::vector<WeightedPair> pairs;
+  for (const auto& [idx, cat_id] : r.matches) {
+    pairs.push_back({ds[static_cast<std::size_t>(idx)],
+                     catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci, 1.0});
+  }
+  const AttitudeSolution q = q_method(pairs);
+  return q.usable ? q.residual_rms_rad : 1e9;
+}
+
+double FrameProcessor::refine_focal_scale(const std::vector<Eigen::Vector2d>& px, StarIdResult& r, double scale) const {
+  const auto dirs_at = [&](double sc) { return directions_at(px, sc); };
+  // Refine (three rounds): the scale that makes the identified stars'
+  // separations match the catalog's (least squares over the pairs,
+  // separations being inversely proportional to the focal length), then
+  // the minimum of the q-method residual within +-0.1 %, then every star
+  // identified again at that scale from the attitude found.
+  const auto q_residual = [&](double s, const StarIdResult& res) { return scale_residual_rad(px, res, s); };
+  double best = scale;
+  for (int round = 0; round < 3; ++round) {
+    const std::vector<Eigen::Vector3d> ds = dirs_at(best);
+    double num = 0.0, den = 0.0;
+    for (std::size_t i = 0; i < r.matches.size(); ++i) {
+      for (std::size_t j = i + 1; j < r.matches.size(); ++j) {
+        const auto& ui = ds[static_cast<std::size_t>(r.matches[i].first)];
+        const auto& uj = ds[static_cast<std::size_t>(r.matches[j].first)];
+        const auto& ci = catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(r.matches[i].second))].u_eci;
+        const auto& cj = catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(r.matches[j].second))].u_eci;
+        const double am = std::atan2(ui.cross(uj).norm(), ui.dot(uj));
+        const double ac = std::atan2(ci.cross(cj).norm(), ci.dot(cj));
+        num += am * ac;
+        den += ac * ac;
+      }
+    }
+    if (den > 0.0) best *= num / den;
+    double lo = best * 0.999, hi = best * 1.001;
+    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+    double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo), f1 = q_residual(x1, r), f2 = q_residual(x2, r);
+    for (int it = 0; it < 30; ++it) {
+      if (f1 < f2) {
+        hi = x2;
+        x2 = x1;
+        f2 = f1;
+        x1 = hi - g * (hi - lo);
+        f1 = q_residual(x1, r);
+      } else {
+        lo = x1;
+        x1 = x2;
+        f1 = f2;
+        x2 = lo + g * (hi - lo);
+        f2 = q_residual(x2, r);
+      }
+    }
+    best = 0.5 * (lo + hi);
+    StarIdResult again =
+        identify_with_prior(dirs_at(best), catalog_, r.q_cam_from_eci, opt_.tracking_tolerance_rad, opt_.star_id);
+    if (again.usable && again.matches.size() >= r.matches.size()) r = std::move(again);
+  }
+  return best;
+}
+
+bool FrameProcessor::search_focal_length(const std::vector<Eigen::Vector2d>& px, std::vector<Eigen::Vector3d>& dirs,
+                                         StarIdResult& id) {
+  const auto dirs_at = [&](double scale) { return directions_at(px, scale); };
+  // A separation of up to the sensor diagonal moves by step * separation:
+  // at most half the match tolerance.
+  const double step = 0.5 * opt_.star_id.match_tolerance_rad / (2.0 * K_nominal_.half_diagonal_fov_rad());
+  const int n = static_cast<int>(std::ceil(opt_.focal_search_fraction / step));
+  const double base = focal_scale_;
+  for (int k = 1; k <= n; ++k) {
+    for (const double sign : {1.0, -1.0}) {
+      const double scale = base * (1.0 + sign * k * step);
+      if (std::abs(scale - 1.0) > opt_.focal_search_fraction) continue;
+      std::vector<Eigen::Vector3d> d = dirs_at(scale);
+      StarIdResult r = identify_lost_in_space(d, catalog_, opt_.star_id);
+      if (!r.usable) continue;
+      const double best = refine_focal_scale(px, r, scale);
+      if (std::abs(best - 1.0) > opt_.focal_search_fraction) continue;
+      // More freedom, more chance matches: a scale found by the search must
+      // fit at least 5 stars to a third of the match tolerance (chance
+      // matches sit near the tolerance: a mirrored frame matched 5 stars at
+      // 52" with a 60" tolerance; the real frames fit 8-28 stars at 4-11").
+      if (r.matches.size() < 5 || scale_residual_rad(px, r, best) > opt_.star_id.match_tolerance_rad / 3.0) continue;
+      focal_scale_ = best;
+      K_ = K_nominal_;
+      K_.fx *= focal_scale_;
+      K_.fy *= focal_scale_;
+      dirs = dirs_at(focal_scale_);
+      id = std::move(r);
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace artms::imp

@@ -85,6 +85,17 @@ struct FrameProcessorOptions {
   // close to be detected on its own, typically an uncatalogued star 2-4 px
   // away. For an isolated source the statistic is about N(0, 1).
   double blend_chi2_z = 5.0;
+  // Lost-in-space with an uncertain focal length (a user's camera; 0 = off,
+  // the flight camera is calibrated): when identification fails at the
+  // nominal focal length, it is tried again with fx and fy scaled by
+  // 1 +- k * step up to +-focal_search_fraction, the step such that the
+  // largest star separation moves by at most half the match tolerance; the
+  // scale that identifies is refined (the identified stars' separations
+  // against the catalog's, then the q-method residual's minimum, then every
+  // star identified again, three times); the frames that follow start from
+  // it and refine their own (FrameSummary::focal_scale). A camera file whose
+  // focal length identifies is used as it is.
+  double focal_search_fraction = 0.0;
   void validate() const;
 };
 
@@ -101,6 +112,9 @@ struct FrameSummary {
     double residual_rad = 0.0;
   };
   std::vector<IdentifiedStar> stars;
+  // Focal length in use over the nominal one (1 unless focal_search_fraction
+  // found another).
+  double focal_scale = 1.0;
   Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
   int stars_matched = 0;
   double residual_rms_rad = 0.0;   // RMS angle, identified stars vs rotated catalog
@@ -149,12 +163,24 @@ class FrameProcessor {
                                                  const AidedDetectionOptions& options) const;
 
  private:
+  // FrameProcessorOptions::focal_search_fraction: identification over
+  // focal-length scales about the current one; on success dirs, id, K_ and
+  // focal_scale_ hold the refined scale's.
+  // Camera directions of the pixels px with the nominal focal length times scale.
+  std::vector<Eigen::Vector3d> directions_at(const std::vector<Eigen::Vector2d>& px, double scale) const;
+  // q-method residual (rad) of r's identified stars at that scale.
+  double scale_residual_rad(const std::vector<Eigen::Vector2d>& px, const StarIdResult& r, double scale) const;
+  double refine_focal_scale(const std::vector<Eigen::Vector2d>& px, StarIdResult& r, double scale) const;
+  bool search_focal_length(const std::vector<Eigen::Vector2d>& px, std::vector<Eigen::Vector3d>& dirs,
+                           StarIdResult& id);
   struct Seen {
     double t_s;
     std::vector<Eigen::Vector2d> px;
     std::vector<Eigen::Vector3d> u_eci;
   };
   Intrinsics K_;
+  Intrinsics K_nominal_;
+  double focal_scale_ = 1.0;
   const StarIdCatalog& catalog_;
   FrameProcessorOptions opt_;
   std::optional<Eigen::Quaterniond> prior_;
