@@ -177,7 +177,7 @@ int run(int argc, char** argv) {
         tracks(fs::path(out) / "tracks.csv");
     std::ofstream star_rows(fs::path(out) / "stars.csv");
     att << "frame,file,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec,focal_px,why\n";
-    star_rows << "frame,file,x_px,y_px,catalog_id,residual_arcsec\n";
+    star_rows << "frame,file,x_px,y_px,catalog_id,residual_arcsec,saturated,sigma_px\n";
     meas << "frame,t_tt_ns,track_id,x_px,y_px,ux_eci,uy_eci,uz_eci,az_rad,el_rad,sigma_rad\n";
     tracks << "track_id,first_frame,last_frame,measurements,segments,fit_rms_arcsec\n";
     // Candidates per frame; the track that took each (SAMUS decides later).
@@ -239,8 +239,8 @@ int run(int argc, char** argv) {
                     K.fx * fr.focal_scale);
       att << line;
       for (const auto& st : fr.stars) {
-        std::snprintf(line, sizeof line, "%d,%s,%.4f,%.4f,%d,%.3f\n", k, file.c_str(), st.x_px, st.y_px, st.catalog_id,
-                      st.residual_rad / astro::kArcsecToRad);
+        std::snprintf(line, sizeof line, "%d,%s,%.4f,%.4f,%d,%.3f,%d,%.4f\n", k, file.c_str(), st.x_px, st.y_px,
+                      st.catalog_id, st.residual_rad / astro::kArcsecToRad, st.saturated ? 1 : 0, st.sigma_px);
         star_rows << line;
       }
       for (std::size_t i = 0; i < fr.candidates.size(); ++i) {

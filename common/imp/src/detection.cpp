@@ -97,6 +97,7 @@ void DetectionOptions::validate() const {
     bad("gain_e_per_dn must be positive");
   if (!(psf_model_error >= 0.0 && psf_model_error < 1.0)) bad("psf_model_error must be in [0, 1)");
   if (!(saturation_dn > 0.0)) bad("saturation_dn must be positive");
+  if (!(saturated_sigma_px >= 0.0) || !std::isfinite(saturated_sigma_px)) bad("saturated_sigma_px must be finite and >= 0");
   if (!(max_sharpness >= 0.0)) bad("max_sharpness must be >= 0 (0 disables)");
   if (!(edge_margin_px >= 0.0)) bad("edge_margin_px must be >= 0");
   if (!(deblend_min_separation_px > 0.0)) bad("deblend_min_separation_px must be positive");
@@ -788,6 +789,7 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
                                  : iwcog_variance_px2(o.psf_sigma_px, s_psf, n_e, b_e2);
       c.sigma_px = n_e > 0.0 ? std::sqrt(var_px2 + o.centroid_sigma_floor_px * o.centroid_sigma_floor_px)
                              : static_cast<double>(half);
+      if (sat) c.sigma_px = std::max(c.sigma_px, o.saturated_sigma_px);
       res.centroids.push_back(c);
     }
   }

@@ -138,7 +138,41 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     pairs.push_back({dirs[static_cast<std::size_t>(idx)],
                      catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci, 1.0 / (s * s)});
   }
-  const AttitudeSolution q = q_method(pairs);
+  AttitudeSolution q = q_method(pairs);
+  // Stars that scatter far more than their centroid sigmas say (a real
+  // camera: seeing, optics, catalog; eq. below) are re-weighted with a
+  // common systematic term s added to every sigma, s such that
+  //   sum_i |b_i - A r_i|^2 / (sigma_i^2 + s^2) = 2N - 3
+  // (variance component estimation); otherwise the brightest star's photon
+  // bound outweighs all others. Frames whose stars fit their sigmas
+  // (chi^2 / dof <= 2) keep the photon weights.
+  if (q.usable && pairs.size() >= 3) {
+    const double dof = 2.0 * static_cast<double>(pairs.size()) - 3.0;
+    const Eigen::Matrix3d A = q.q_body_from_ref.toRotationMatrix();
+    std::vector<double> r2(pairs.size()), s2(pairs.size());
+    double chi2 = 0.0;
+    for (std::size_t i = 0; i < pairs.size(); ++i) {
+      r2[i] = (pairs[i].body - A * pairs[i].reference).squaredNorm();
+      s2[i] = 1.0 / pairs[i].weight;
+      chi2 += r2[i] / s2[i];
+    }
+    if (chi2 > 2.0 * dof) {
+      const auto excess = [&](double sys2) {
+        double c = 0.0;
+        for (std::size_t i = 0; i < pairs.size(); ++i) c += r2[i] / (s2[i] + sys2);
+        return c - dof;
+      };
+      double lo = 0.0, hi = *std::max_element(r2.begin(), r2.end());
+      for (int it = 0; it < 60 && excess(hi) > 0.0; ++it) hi *= 2.0;
+      for (int it = 0; it < 60; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (excess(mid) > 0.0 ? lo : hi) = mid;
+      }
+      for (std::size_t i = 0; i < pairs.size(); ++i) pairs[i].weight = 1.0 / (s2[i] + hi);
+      const AttitudeSolution again = q_method(pairs);
+      if (again.usable) q = again;
+    }
+  }
   out.attitude_usable = true;
   out.stars_matched = static_cast<int>(id.matches.size());
   if (q.usable) {
@@ -167,7 +201,8 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
       const Eigen::Vector3d u_cat =
           R_cam_from_eci * catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci;
       const Eigen::Vector3d& u_meas = dirs[static_cast<std::size_t>(idx)];
-      out.stars.push_back({c.x_px, c.y_px, cat_id, std::atan2(u_meas.cross(u_cat).norm(), u_meas.dot(u_cat))});
+      out.stars.push_back({c.x_px, c.y_px, cat_id, std::atan2(u_meas.cross(u_cat).norm(), u_meas.dot(u_cat)),
+                           c.saturated, blend_sigma_px(c.sigma_px, c.psf_chi2_z > opt_.blend_chi2_z, opt_)});
     }
   }
 

@@ -177,6 +177,12 @@ struct DetectionOptions {
   double gain_e_per_dn = 2.4;
   // A pixel at or above this value is saturated (12-bit: 4095).
   double saturation_dn = 4095.0;
+  // 1-sigma per axis of a saturated source's centroid (Centroid::saturated):
+  // its flat top carries no position and the photon bound of item 5 would
+  // claim hundredths of a pixel, so that one bright star outweighed every
+  // other in the attitude (real frames, issue 19). A fraction of the PSF
+  // width: the wings still place it.
+  double saturated_sigma_px = 0.3;
   // Hot-pixel guard beyond min_pixels: a pixel of a component that is at
   // least 10 noise sigma above the background and exceeds max_sharpness
   // times the mean of its four edge neighbours (background-subtracted) is a

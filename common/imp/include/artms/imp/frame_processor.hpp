@@ -110,6 +110,8 @@ struct FrameSummary {
     double x_px = 0.0, y_px = 0.0;
     int catalog_id = 0;
     double residual_rad = 0.0;
+    bool saturated = false;
+    double sigma_px = 0.0;  // the centroid 1-sigma the attitude weighted it with
   };
   std::vector<IdentifiedStar> stars;
   // Focal length in use over the nominal one (1 unless focal_search_fraction
