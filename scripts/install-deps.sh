@@ -9,12 +9,16 @@ PACKAGES=(
   cyclonedds-dev cyclonedds-tools libeigen3-dev libsundials-dev libyaml-cpp-dev
   # imaging: only the OpenCV components the project uses
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
+  # FITS frames for artms-imp (CFITSIO)
+  libcfitsio-dev
   # CLI parsing, logging, formatting, JSON
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # independent oracles for tests (Debian's python3 at /usr/bin/python3)
   python3 python3-numpy python3-scipy python3-poliastro python3-sklearn python3-skyfield
+  # image files for the real-frame tests (PIL: mirrored PNGs; astropy: FITS)
+  python3-pil python3-astropy
   # plots for artms-report helpers and docs
   python3-matplotlib
   # campaigns on a cluster engine (tools/artms_swarm/campaign.py --dask-*)

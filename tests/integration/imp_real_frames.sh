@@ -15,7 +15,11 @@
 #     solutions' 5116 px, roll within 20", boresight within 8" (issue 19 asks
 #     5": frame Alt40_Azi-135, 8 stars, is at 6.7");
 #  6. artms-calibrate on the solved frames of 5: the focal length within
-#     0.05 % of 5116 px, and the written camera file solves every frame.
+#     0.05 % of 5116 px, and the written camera file solves every frame;
+#  7. the same frames as FITS (unsigned 16-bit, rows bottom first, DATE-OBS
+#     20:47:25.5 UTC and EXPTIME 1 s) without --time: all solved with the
+#     same attitudes, time tags at mid-exposure (20:47:26), no time warning;
+#     read with the wrong row order (--fits-rows top-first): none solved.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -119,5 +123,35 @@ print(f"artms-calibrate: f {f_fit:.2f} px ({100 * (f_fit / 5116.0 - 1):+.4f} % f
 assert abs(f_fit / 5116.0 - 1.0) <= 0.0005, f_fit
 rows = list(csv.DictReader(open(f"{work}/fit/attitude.csv")))
 assert len(rows) == 3 and all(r["status"] == "ok" for r in rows), rows
+import os
+from PIL import Image
+from astropy.io import fits
+os.makedirs(f"{work}/fits", exist_ok=True)
+for n in sorted(x for x in os.listdir(images) if x.endswith(".png")):
+    a = np.array(Image.open(f"{images}/{n}")).astype(np.uint16)
+    h = fits.Header()
+    h["DATE-OBS"] = "2019-07-29T20:47:25.5"
+    h["EXPTIME"] = 1.0
+    fits.PrimaryHDU(np.flipud(a), header=h).writeto(f"{work}/fits/{n[:-4]}.fits")
+PY
+"$BIN/artms-imp" "$CAM" "$WORK/fits" --out "$WORK/out_fits" 2> "$WORK/fits.err"
+if grep -q "warning: no time" "$WORK/fits.err"; then echo "FITS: time warning although DATE-OBS is given"; exit 1; fi
+set +e
+"$BIN/artms-imp" "$CAM" "$WORK/fits" --fits-rows top-first --focal-search-percent 0 --out "$WORK/out_fits_flipped" \
+  2> "$WORK/fits_flipped.err"
+rc=$?
+set -e
+[ "$rc" = 3 ] || { echo "FITS read in the wrong row order: exit $rc, expected 3"; exit 1; }
+/usr/bin/python3 - "$WORK" <<'PY'
+import csv, sys
+work = sys.argv[1]
+png = {r["file"][:-4]: r for r in csv.DictReader(open(f"{work}/real/attitude.csv"))}
+fit = {r["file"][:-5]: r for r in csv.DictReader(open(f"{work}/out_fits/attitude.csv"))}
+assert png.keys() == fit.keys(), (png.keys(), fit.keys())
+t_mid = 617705315184000000  # 2019-07-29T20:47:26 UTC in TT ns since J2000
+for k, r in fit.items():
+    assert r["status"] == "ok" and int(r["t_tt_ns"]) == t_mid, r
+    assert all(abs(float(r[q]) - float(png[k][q])) < 1e-9 for q in ("qw", "qx", "qy", "qz")), (r, png[k])
+print("FITS: 3 of 3 solved, attitudes as from the PNGs, time tags at mid-exposure; wrong row order: none solved")
 print("imp_real_frames: ok")
 PY

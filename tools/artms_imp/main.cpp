@@ -35,6 +35,7 @@
 #include "artms/render/camera_calibration.hpp"
 #include "artms/imp/star_id.hpp"
 #include "artms/io/paths.hpp"
+#include "fits.hpp"
 #include "orbit_table.hpp"
 
 namespace {
@@ -59,7 +60,7 @@ int run(int argc, char** argv) {
   double vmag_limit = 6.5;
   app.add_option("camera", camera_path, "camera YAML (e.g. config/cameras/nst.yaml)")->required();
   app.add_option("frames", inputs,
-                 "frames: folders (every .png/.tif/.tiff in them; only frame_<k>.png where there are such) and/or\nfiles, 8- or 16-bit gray; a frame "
+                 "frames: folders (every .png/.tif/.tiff/.fits in them; only frame_<k>.png where there are such)\nand/or files: 8- or 16-bit gray PNG or TIFF, FITS (time from DATE-OBS + EXPTIME / 2); a frame "
                  "<name>.png may have a sidecar <name>.json with t_tt_ns (or time_tag_tt_ns)")
       ->required();
   app.add_option("--time", time_utc,
@@ -67,6 +68,13 @@ int run(int argc, char** argv) {
                  "epoch and the time tag; without it and without sidecars the catalog stays at J2000 (warned)");
   app.add_option("--out", out, "output folder")->required();
   app.add_option("--vmag-limit", vmag_limit, "faintest catalog star used for identification")
+      ->capture_default_str();
+  std::string fits_rows = "bottom-first";
+  app.add_option("--fits-rows", fits_rows,
+                 "FITS row order: bottom-first (the FITS standard: row 1 at the bottom of the picture) or\n"
+                 "top-first (a camera that writes its first readout row as row 1); a wrong order mirrors the\n"
+                 "frame and nothing is identified")
+      ->check(CLI::IsMember({"bottom-first", "top-first"}))
       ->capture_default_str();
   double focal_search_percent = 3.0;
   app.add_option("--focal-search-percent", focal_search_percent,
@@ -103,7 +111,7 @@ int run(int argc, char** argv) {
     const auto is_image = [](const fs::path& p) {
       std::string ext = p.extension().string();
       std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-      return ext == ".png" || ext == ".tif" || ext == ".tiff";
+      return ext == ".png" || ext == ".tif" || ext == ".tiff" || ext == ".fits" || ext == ".fit" || ext == ".fts";
     };
     for (const auto& in : inputs) {
       if (fs::is_directory(in)) {
@@ -123,7 +131,7 @@ int run(int argc, char** argv) {
         frames.emplace_back(in);  // a missing or unreadable file is reported as its frame's reason
       }
     }
-    if (frames.empty()) throw std::runtime_error("no frames (.png, .tif, .tiff) in the given folders or files");
+    if (frames.empty()) throw std::runtime_error("no frames (.png, .tif, .tiff, .fits) in the given folders or files");
     // Frame numbers: <k> of frame_<k>.png when every name has it, else the
     // order given (folders sorted by name).
     const bool numbered = std::all_of(frames.begin(), frames.end(), [&](const fs::path& p) {
@@ -144,16 +152,34 @@ int run(int argc, char** argv) {
         return std::nullopt;
       }
     };
+    const auto is_fits = [](const fs::path& p) {
+      std::string ext = p.extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+      return ext == ".fits" || ext == ".fit" || ext == ".fts";
+    };
+    // A FITS header's time (DATE-OBS, EXPTIME), read once per frame below;
+    // for the catalog epoch, the first frame's.
+    const auto fits_time = [&](const fs::path& path) -> std::optional<std::int64_t> {
+      if (!is_fits(path)) return std::nullopt;
+      try {
+        const auto fr = imp_tool::read_fits(path.string(), fits_rows == "bottom-first");
+        if (fr.t_mid) return fr.t_mid->ns_since_j2000;
+      } catch (const std::exception&) {
+      }
+      return std::nullopt;
+    };
     // Catalog directions at the first frame's epoch (proper motion over a
     // run is far below the identification tolerance).
     astro::TimeTT t_cat = astro::tt_from_utc_string("2000-01-01T12:00:00Z");
     if (const auto t0 = sidecar_time(frames.front())) {
       t_cat = astro::TimeTT{*t0};
+    } else if (const auto tf = fits_time(frames.front())) {
+      t_cat = astro::TimeTT{*tf};
     } else if (t_cli) {
       t_cat = *t_cli;
     } else {
       std::fprintf(stderr,
-                   "artms-imp: warning: no time for the frames (no sidecar, no --time): the catalog stays at "
+                   "artms-imp: warning: no time for the frames (no sidecar, FITS DATE-OBS or --time): the catalog stays at "
                    "J2000 and time tags are 0; proper motion since then can cost tens of arcsec of roll\n");
     }
     const int shift = calib.dn_shift_bits;
@@ -203,10 +229,16 @@ int run(int argc, char** argv) {
                              : static_cast<int>(fi);
       const std::string file = csv_text(path.filename().string());
       std::int64_t t_ns = t_cli ? t_cli->ns_since_j2000 : 0;
-      if (const auto ts = sidecar_time(path)) t_ns = *ts;
       imaging::Image16 img;
       try {
-        img = imaging::read_png16(path.string());
+        if (is_fits(path)) {
+          imp_tool::FitsFrame fr = imp_tool::read_fits(path.string(), fits_rows == "bottom-first");
+          img = std::move(fr.image);
+          if (fr.t_mid) t_ns = fr.t_mid->ns_since_j2000;
+        } else {
+          img = imaging::read_png16(path.string());
+        }
+        if (const auto ts = sidecar_time(path)) t_ns = *ts;
         if (shift > 0) {
           for (auto& v : img.pixels) v = static_cast<std::uint16_t>(v >> shift);
         }
