@@ -76,6 +76,11 @@ int run(int argc, char** argv) {
                  "frame and nothing is identified")
       ->check(CLI::IsMember({"bottom-first", "top-first"}))
       ->capture_default_str();
+  bool learn_psf = false;
+  app.add_option("--learn-psf", learn_psf,
+                 "learn the PSF width from the solved frames' bright stars (the camera file's psf_sigma_px is\n"
+                 "the start; written as psf_sigma_px per frame)")
+      ->capture_default_str();
   double focal_search_percent = 3.0;
   app.add_option("--focal-search-percent", focal_search_percent,
                  "lost-in-space also with the focal length scaled by up to +-this % when the camera file's\n"
@@ -196,13 +201,14 @@ int run(int argc, char** argv) {
     if (orbit) samus.emplace(samus_opt);
     imp::FrameProcessorOptions fpo = fsw::frame_processor_options(calib, config::ImpTuning{});
     fpo.focal_search_fraction = focal_search_percent / 100.0;
+    fpo.learn_psf = learn_psf;
     imp::FrameProcessor processor(K, catalog, fpo);
 
     fs::create_directories(out);
     std::ofstream att(fs::path(out) / "attitude.csv"), meas(fs::path(out) / "measurements.csv"),
         tracks(fs::path(out) / "tracks.csv");
     std::ofstream star_rows(fs::path(out) / "stars.csv");
-    att << "frame,file,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec,focal_px,why\n";
+    att << "frame,file,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec,focal_px,psf_sigma_px,why\n";
     star_rows << "frame,file,x_px,y_px,catalog_id,residual_arcsec,saturated,sigma_px\n";
     meas << "frame,t_tt_ns,track_id,x_px,y_px,ux_eci,uy_eci,uz_eci,az_rad,el_rad,sigma_rad\n";
     tracks << "track_id,first_frame,last_frame,measurements,segments,fit_rms_arcsec\n";
@@ -249,7 +255,7 @@ int run(int argc, char** argv) {
       } catch (const std::exception& e) {
         ++corrupt;
         std::fprintf(stderr, "artms-imp: skipping %s: %s\n", path.c_str(), e.what());
-        std::snprintf(line, sizeof line, "%d,%s,%lld,corrupt,,,,,0,,,,", k, file.c_str(), static_cast<long long>(t_ns));
+        std::snprintf(line, sizeof line, "%d,%s,%lld,corrupt,,,,,0,,,,,", k, file.c_str(), static_cast<long long>(t_ns));
         att << line << csv_text(e.what()) << "\n";
         continue;
       }
@@ -257,18 +263,18 @@ int run(int argc, char** argv) {
       hot += fr.hot_pixels_removed;
       uncatalogued += fr.uncatalogued_stars_removed;
       if (!fr.attitude_usable) {
-        std::snprintf(line, sizeof line, "%d,%s,%lld,%s,,,,,%d,,,,", k, file.c_str(), static_cast<long long>(t_ns),
-                      fr.status.c_str(), fr.stars_matched);
+        std::snprintf(line, sizeof line, "%d,%s,%lld,%s,,,,,%d,,,,%.3f,", k, file.c_str(), static_cast<long long>(t_ns),
+                      fr.status.c_str(), fr.stars_matched, fr.psf_sigma_px);
         att << line << csv_text(fr.why) << "\n";
         std::fprintf(stderr, "artms-imp: %s: %s (%s)\n", path.filename().c_str(), fr.status.c_str(), fr.why.c_str());
         continue;
       }
       ++solved;
       const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
-      std::snprintf(line, sizeof line, "%d,%s,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f,%.3f,%.3f,\n", k, file.c_str(),
-                    static_cast<long long>(t_ns), q[0], q[1], q[2], q[3], fr.stars_matched,
+      std::snprintf(line, sizeof line, "%d,%s,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f,%.3f,%.3f,%.3f,\n", k,
+                    file.c_str(), static_cast<long long>(t_ns), q[0], q[1], q[2], q[3], fr.stars_matched,
                     fr.residual_rms_rad / astro::kArcsecToRad, fr.attitude_sigma_rad / astro::kArcsecToRad,
-                    K.fx * fr.focal_scale);
+                    K.fx * fr.focal_scale, fr.psf_sigma_px);
       att << line;
       for (const auto& st : fr.stars) {
         std::snprintf(line, sizeof line, "%d,%s,%.4f,%.4f,%d,%.3f,%d,%.4f\n", k, file.c_str(), st.x_px, st.y_px,

@@ -766,11 +766,13 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
       // Flux: plain sum over the window around the centroid; saturation:
       // any unmasked saturated pixel in it.
       const int ix = static_cast<int>(std::lround(xc)), iy = static_cast<int>(std::lround(yc));
-      double flux = 0.0;
+      double flux = 0.0, m2 = 0.0;
       bool sat = false;
       for (int yy = std::max(0, iy - half); yy <= std::min(height - 1, iy + half); ++yy) {
         for (int xx = std::max(0, ix - half); xx <= std::min(width - 1, ix + half); ++xx) {
-          flux += f.centroid_signal(xx, yy);
+          const double sig = f.centroid_signal(xx, yy);
+          flux += sig;
+          m2 += sig * ((xx - xc) * (xx - xc) + (yy - yc) * (yy - yc));
           sat = sat || (f.value(xx, yy) >= o.saturation_dn && f.masked(xx, yy) == nullptr);
         }
       }
@@ -782,6 +784,10 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
       c.pixels = npx;
       c.saturated = sat;
       c.psf_chi2_z = sat ? 0.0 : psf_chi2_z(f, o, noise_c, half, xc, yc);
+      if (!sat && flux > 0.0) {
+        const double v = 0.5 * m2 / flux - 1.0 / 12.0;
+        c.moment_sigma_px = v > 0.0 ? std::sqrt(v) : 0.0;
+      }
       const double n_e = std::max(flux, st.peak) * o.gain_e_per_dn;
       const double b_e2 = std::pow(noise_c * o.gain_e_per_dn, 2);
       const double var_px2 = o.centroid_method == CentroidMethod::kGaussianFit

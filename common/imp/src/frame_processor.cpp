@@ -53,6 +53,7 @@ FrameProcessor::FrameProcessor(Intrinsics intrinsics, const StarIdCatalog& catal
 FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astro::TimeTT t) {
   const double t_s = t.seconds_since_j2000();
   FrameSummary out;
+  out.psf_sigma_px = opt_.detection.psf_sigma_px;
   const DetectionResult det = detect(pixels, K_.width, K_.height, opt_.detection);
   out.detections = static_cast<int>(det.centroids.size());
   last_ = Last{};
@@ -194,6 +195,23 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
   }
   prior_ = out.q_cam_from_eci;
   prior_t_s_ = t_s;
+  if (opt_.learn_psf) {
+    std::vector<double> w;
+    for (const auto& [idx, cat_id] : id.matches) {
+      const auto& c = det.centroids[order[static_cast<std::size_t>(idx)]];
+      if (!c.saturated && c.moment_sigma_px > 0.0 && c.peak_dn > 20.0 * det.noise_dn) {
+        w.push_back(c.moment_sigma_px);
+      }
+    }
+    if (w.size() >= 3) {
+      std::nth_element(w.begin(), w.begin() + static_cast<long>(w.size() / 2), w.end());
+      psf_widths_.push_back(w[w.size() / 2]);
+      if (psf_widths_.size() > 10) psf_widths_.pop_front();
+      std::vector<double> m(psf_widths_.begin(), psf_widths_.end());
+      std::nth_element(m.begin(), m.begin() + static_cast<long>(m.size() / 2), m.end());
+      opt_.detection.psf_sigma_px = std::clamp(m[m.size() / 2], 0.3, 5.0);
+    }
+  }
   {
     const Eigen::Matrix3d R_cam_from_eci = out.q_cam_from_eci.toRotationMatrix();
     for (const auto& [idx, cat_id] : id.matches) {

@@ -362,6 +362,32 @@ TEST(Detection, FollowsABackgroundGradient) {
 
 // Components above max_pixels (an extended blob) and single pixels are
 // rejected and counted.
+// The source's own width from its second moments (FrameProcessorOptions::
+// learn_psf learns the camera's PSF from it): spots rendered with PSF
+// sigmas of 0.65, 1.2 and 2.0 px, detection told 1.2 px every time.
+TEST(Detection, MomentWidthMeasuresTheSourcesOwnPsf) {
+  for (const double psf : {0.65, 1.2, 2.0}) {
+    auto cam = nst_camera();
+    cam.width_px = 64;
+    cam.height_px = 64;
+    cam.hot_pixel_count = 0;
+    cam.psf_sigma_px = psf;
+    const imaging::ImageFormer former(cam);
+    const imaging::PointSource src{31.3, 30.6, 3.0e4};
+    const auto fl = former.render_float(std::span(&src, 1), 1, imaging::NoiseOptions::sources_only());
+    std::vector<std::uint16_t> px(fl.size());
+    for (std::size_t i = 0; i < fl.size(); ++i) px[i] = static_cast<std::uint16_t>(std::lround(100.0 + 16.0 * fl[i]));
+    DetectionOptions o;
+    o.saturation_dn = 65535;
+    o.background_cell_px = 32;
+    o.psf_sigma_px = 1.2;
+    const auto r = detect(px, 64, 64, o);
+    ASSERT_EQ(r.centroids.size(), 1U) << psf;
+    std::printf("[ figures ] PSF %.2f px rendered: moment width %.3f px\n", psf, r.centroids[0].moment_sigma_px);
+    EXPECT_NEAR(r.centroids[0].moment_sigma_px, psf, 0.12 * psf) << psf;
+  }
+}
+
 TEST(Detection, RejectsSinglePixelsAndOversizedBlobs) {
   const int w = 256, h = 256;
   std::vector<std::uint16_t> px(static_cast<std::size_t>(w * h));

@@ -223,6 +223,12 @@ struct Centroid {
   // large for a source blended with a neighbour too faint or too close to be
   // found on its own. 0 when saturated.
   double psf_chi2_z = 0.0;
+  // The source's own width: sqrt((Mxx + Myy) / 2 - 1/12) from the
+  // background-subtracted second moments about the centroid over its window
+  // (the 1/12 undoes the pixel's box), pixels; 0 when saturated or not
+  // measurable. Noisy for faint sources: FrameProcessor learns the camera's
+  // PSF from bright identified stars only.
+  double moment_sigma_px = 0.0;
 };
 
 struct DetectionResult {

@@ -96,6 +96,13 @@ struct FrameProcessorOptions {
   // it and refine their own (FrameSummary::focal_scale). A camera file whose
   // focal length identifies is used as it is.
   double focal_search_fraction = 0.0;
+  // Learn the camera's PSF width instead of assuming detection.psf_sigma_px:
+  // each solved frame's median width (Centroid::moment_sigma_px) of its
+  // identified, unsaturated stars peaking above 20 noise sigma
+  // (at least 3), the median of the last 10 such frames replacing
+  // detection.psf_sigma_px from the next frame on (the PSF test, the
+  // centroid window and sigma follow it). Off: the camera file's value.
+  bool learn_psf = false;
   void validate() const;
 };
 
@@ -117,6 +124,8 @@ struct FrameSummary {
   // Focal length in use over the nominal one (1 unless focal_search_fraction
   // found another).
   double focal_scale = 1.0;
+  // The PSF width detection used on this frame (learned or the option's).
+  double psf_sigma_px = 0.0;
   Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
   int stars_matched = 0;
   double residual_rms_rad = 0.0;   // RMS angle, identified stars vs rotated catalog
@@ -182,6 +191,7 @@ class FrameProcessor {
   };
   Intrinsics K_;
   Intrinsics K_nominal_;
+  std::deque<double> psf_widths_;  // learn_psf: the last frames' median star widths
   double focal_scale_ = 1.0;
   const StarIdCatalog& catalog_;
   FrameProcessorOptions opt_;
