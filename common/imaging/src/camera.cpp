@@ -218,7 +218,8 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     const std::string p = "optics";
     const auto e = rd.entries(node, p,
                               {"focal_length_mm", "fx_px", "fy_px", "cx_px", "cy_px", "k1", "k2",
-                               "aperture_diameter_mm", "throughput_qe", "psf_sigma_px"});
+                               "aperture_diameter_mm", "throughput_qe", "psf_sigma_px", "vignetting_corner_loss",
+                               "psf_growth_corner"});
     cam.focal_length_m = *rd.number(e, node, p, "focal_length_mm", true, positive, "> 0") * 1e-3;
     const double f_px = cam.focal_length_m / cam.pixel_pitch_m;
     cam.fx_px = rd.number(e, node, p, "fx_px", false, positive, "> 0").value_or(f_px);
@@ -238,12 +239,20 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
                              e, node, p, "psf_sigma_px", false,
                              [](double x) { return x >= 0.1 && x <= 50; }, "in [0.1, 50]")
                            .value_or(cam.psf_sigma_px);
+    cam.vignetting_corner_loss =
+        rd.number(e, node, p, "vignetting_corner_loss", false, [](double x) { return x >= 0.0 && x < 1.0; },
+                  "in [0, 1)")
+            .value_or(0.0);
+    cam.psf_growth_corner =
+        rd.number(e, node, p, "psf_growth_corner", false, [](double x) { return x >= 0.0 && x <= 5.0; },
+                  "in [0, 5]")
+            .value_or(0.0);
   }
 
   if (const YAML::Node node = Reader::child(top, "photometry"); node.IsDefined()) {
     const std::string p = "photometry";
     const auto e =
-        rd.entries(node, p, {"exposure_s", "v0_photon_flux_per_s_m2", "background_e_per_px_per_s"});
+        rd.entries(node, p, {"exposure_s", "v0_photon_flux_per_s_m2", "background_e_per_px_per_s", "background_gradient"});
     cam.exposure_s =
         rd.number(e, node, p, "exposure_s", false, positive, "> 0").value_or(cam.exposure_s);
     cam.v0_photon_flux_per_s_m2 =
@@ -252,6 +261,10 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     cam.background_e_per_px_per_s =
         rd.number(e, node, p, "background_e_per_px_per_s", false, non_negative, ">= 0")
             .value_or(cam.background_e_per_px_per_s);
+    cam.background_gradient =
+        rd.number(e, node, p, "background_gradient", false, [](double x) { return x > -1.0 && x < 1.0; },
+                  "in (-1, 1)")
+            .value_or(0.0);
   }
 
   if (const YAML::Node node = Reader::child(top, "hot_pixels"); node.IsDefined()) {

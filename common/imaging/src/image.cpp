@@ -465,7 +465,33 @@ std::vector<float> ImageFormer::expected_electrons(std::span<const PointSource> 
           static_cast<std::size_t>(hp.x)] += static_cast<float>(hp.dark_e_per_s * c.exposure_s);
     }
   }
-  for (const PointSource& s : sources) add_gaussian_psf(img, w, h, s, c.psf_sigma_px);
+  const bool field = c.vignetting_corner_loss > 0.0 || c.psf_growth_corner > 0.0 || c.background_gradient != 0.0;
+  if (!field) {
+    for (const PointSource& s : sources) add_gaussian_psf(img, w, h, s, c.psf_sigma_px);
+    return img;
+  }
+  // Field effects (CameraModel: vignetting, off-axis PSF growth, background
+  // gradient), in the corner-normalised radius from the principal point.
+  const double r2_corner = std::max(std::pow(std::max(c.cx_px, w - 1 - c.cx_px), 2) +
+                                        std::pow(std::max(c.cy_px, h - 1 - c.cy_px), 2),
+                                    1.0);
+  if (options.background && (c.vignetting_corner_loss > 0.0 || c.background_gradient != 0.0)) {
+    const float sky = static_cast<float>(c.background_e_per_px_per_s * c.exposure_s);
+    for (int y = 0; y < h; ++y) {
+      float* row = img.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(w);
+      for (int x = 0; x < w; ++x) {
+        const double q = (std::pow(x - c.cx_px, 2) + std::pow(y - c.cy_px, 2)) / r2_corner;
+        const double g = 1.0 + c.background_gradient * (x - c.cx_px) / (0.5 * w);
+        row[x] += static_cast<float>(sky * ((1.0 - c.vignetting_corner_loss * q) * g - 1.0));
+      }
+    }
+  }
+  for (const PointSource& s : sources) {
+    const double q = (std::pow(s.x_px - c.cx_px, 2) + std::pow(s.y_px - c.cy_px, 2)) / r2_corner;
+    PointSource v = s;
+    v.electrons = s.electrons * (1.0 - c.vignetting_corner_loss * std::min(q, 1.0));
+    add_gaussian_psf(img, w, h, v, c.psf_sigma_px * (1.0 + c.psf_growth_corner * std::min(q, 1.0)));
+  }
   return img;
 }
 

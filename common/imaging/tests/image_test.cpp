@@ -276,6 +276,59 @@ TEST(ImageNoise, EachTermSwitchesAlone) {
   }
 }
 
+// Field effects of real optics (issue 19): vignetting takes its corner loss
+// from a source in the corner and from the sky there, the PSF widens off
+// axis, and the background follows its gradient; all off by default.
+TEST(ImageFormation, VignettingOffAxisBlurAndBackgroundGradient) {
+  CameraModel cam;
+  cam.hot_pixel_count = 0;
+  cam.vignetting_corner_loss = 0.3;
+  cam.psf_growth_corner = 0.5;
+  cam.background_gradient = 0.2;
+  const ImageFormer former(cam);
+  NoiseOptions src_only = NoiseOptions::sources_only();
+  // A source at the centre and one near the corner (r / r_corner ~ 0.99).
+  const double xc = cam.cx_px, yc = cam.cy_px, xk = 8.0, yk = 6.0;
+  const std::vector<PointSource> two{{xc, yc, 1e5}, {xk, yk, 1e5}};
+  const std::vector<float> e = former.expected_electrons(two, src_only);
+  const auto stats = [&](double x0, double y0) {
+    double sum = 0.0, m2 = 0.0;
+    for (int y = static_cast<int>(y0) - 8; y <= static_cast<int>(y0) + 8; ++y) {
+      for (int x = static_cast<int>(x0) - 8; x <= static_cast<int>(x0) + 8; ++x) {
+        if (x < 0 || y < 0) continue;
+        const double v = e[static_cast<std::size_t>(y) * static_cast<std::size_t>(cam.width_px) + static_cast<std::size_t>(x)];
+        sum += v;
+        m2 += v * (std::pow(x - x0, 2) + std::pow(y - y0, 2));
+      }
+    }
+    return std::make_pair(sum, std::sqrt(0.5 * m2 / sum - 1.0 / 12.0));
+  };
+  const double q = (std::pow(xk - cam.cx_px, 2) + std::pow(yk - cam.cy_px, 2)) /
+                   (std::pow(cam.cx_px, 2) + std::pow(cam.cy_px, 2));
+  const auto [flux_c, width_c] = stats(xc, yc);
+  const auto [flux_k, width_k] = stats(xk, yk);
+  EXPECT_NEAR(flux_c, 1e5, 1e5 * 1e-3);
+  EXPECT_NEAR(flux_k, 1e5 * (1.0 - 0.3 * q), 1e5 * 1e-2);
+  EXPECT_NEAR(width_c, cam.psf_sigma_px, 0.02);
+  EXPECT_NEAR(width_k, cam.psf_sigma_px * (1.0 + 0.5 * q), 0.05);
+  // Sky: the gradient and the vignetting, both in the expected electrons.
+  NoiseOptions bg = NoiseOptions::sources_only();
+  bg.background = true;
+  const std::vector<float> sky = former.expected_electrons({}, bg);
+  const double b0 = cam.background_e_per_px_per_s * cam.exposure_s;
+  const auto at = [&](int x, int y) { return sky[static_cast<std::size_t>(y) * static_cast<std::size_t>(cam.width_px) + static_cast<std::size_t>(x)]; };
+  const int ym = static_cast<int>(cam.cy_px);
+  EXPECT_NEAR(at(static_cast<int>(cam.cx_px), ym), b0, b0 * 1e-3);
+  const double right_q = std::pow(cam.width_px - 1 - cam.cx_px, 2) / (std::pow(cam.cx_px, 2) + std::pow(cam.cy_px, 2));
+  EXPECT_NEAR(at(cam.width_px - 1, ym),
+              b0 * (1.0 - 0.3 * right_q) * (1.0 + 0.2 * (cam.width_px - 1 - cam.cx_px) / (0.5 * cam.width_px)), b0 * 2e-3);
+  // Off by default: the NST file renders as before.
+  const CameraModel plain;
+  EXPECT_EQ(plain.vignetting_corner_loss, 0.0);
+  EXPECT_EQ(plain.psf_growth_corner, 0.0);
+  EXPECT_EQ(plain.background_gradient, 0.0);
+}
+
 TEST(ImageNoise, HotPixelsStayPutAcrossFramesAndSeeds) {
   const CameraModel cam;  // 250 hot pixels
   const ImageFormer former(cam);

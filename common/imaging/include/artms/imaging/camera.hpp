@@ -50,6 +50,16 @@ struct CameraModel {
   // Brown radial distortion on normalised coordinates (0 = ideal pinhole).
   double k1 = 0.0;
   double k2 = 0.0;
+  // Field effects of real optics (0 = off, the NST file's default): the
+  // fraction of light lost at the sensor corner, growing as (r / r_corner)^2
+  // from the principal point (vignetting; sources and sky background alike);
+  // the PSF sigma's growth at the corner, sigma(r) = psf_sigma_px (1 + g
+  // (r / r_corner)^2) (off-axis blur); and a linear sky-background gradient,
+  // the background times 1 + b (x - cx) / (width / 2) (stray light from one
+  // side).
+  double vignetting_corner_loss = 0.0;
+  double psf_growth_corner = 0.0;
+  double background_gradient = 0.0;
 
   // --- Optics and photometry -------------------------------------------------
   // Exposure (integration) time. The NST updates at up to 5 Hz, so 0.2 s is
