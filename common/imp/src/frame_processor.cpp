@@ -77,6 +77,13 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
   if (prior_ && std::abs(t_s - prior_t_s_) > opt_.prior_max_age_s) prior_.reset();
   StarIdResult id;
   bool found_by_search = false;
+  // Centroid pixels in identification order (the focal-length search and
+  // its refinement re-project them).
+  std::vector<Eigen::Vector2d> px;
+  if (opt_.focal_search_fraction > 0.0) {
+    px.reserve(order.size());
+    for (auto i : order) px.emplace_back(det.centroids[i].x_px, det.centroids[i].y_px);
+  }
   if (det.usable && dirs.size() >= 3) {
     if (prior_) {
       id = identify_with_prior(dirs, catalog_, *prior_, opt_.tracking_tolerance_rad, opt_.star_id);
@@ -85,9 +92,6 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     if (!id.usable) id = identify_lost_in_space(dirs, catalog_, opt_.star_id);
     if (!id.usable && opt_.focal_search_fraction > 0.0) {
       const StarIdResult nominal = id;
-      std::vector<Eigen::Vector2d> px;
-      px.reserve(order.size());
-      for (auto i : order) px.emplace_back(det.centroids[i].x_px, det.centroids[i].y_px);
       if (search_focal_length(px, dirs, id)) {
         found_by_search = true;
       } else {
@@ -101,17 +105,10 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     // The camera file's focal length failed on an earlier frame: every frame
     // identified since gets its own scale (tetra3 fits a field of view per
     // image); a camera file that identifies is trusted as it is.
-    std::vector<Eigen::Vector2d> px;
-    px.reserve(order.size());
-    for (auto i : order) px.emplace_back(det.centroids[i].x_px, det.centroids[i].y_px);
     const double s_frame = refine_focal_scale(px, id, focal_scale_);
     if (std::abs(s_frame - 1.0) <= opt_.focal_search_fraction) {
-      focal_scale_ = s_frame;
-      K_ = K_nominal_;
-      K_.fx *= focal_scale_;
-      K_.fy *= focal_scale_;
-      dirs.clear();
-      for (const auto& p : px) dirs.push_back(K_.unproject(p));
+      use_focal_scale(s_frame);
+      dirs = directions_at(px, s_frame);
     }
   }
   out.focal_scale = focal_scale_;
@@ -351,6 +348,13 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   return cand;
 }
 
+void FrameProcessor::use_focal_scale(double scale) {
+  focal_scale_ = scale;
+  K_ = K_nominal_;
+  K_.fx *= scale;
+  K_.fy *= scale;
+}
+
 std::vector<Eigen::Vector3d> FrameProcessor::directions_at(const std::vector<Eigen::Vector2d>& px, double scale) const {
   Intrinsics K = K_nominal_;
   K.fx *= scale;
@@ -446,11 +450,8 @@ bool FrameProcessor::search_focal_length(const std::vector<Eigen::Vector2d>& px,
       // matches sit near the tolerance: a mirrored frame matched 5 stars at
       // 52" with a 60" tolerance; the real frames fit 8-28 stars at 4-11").
       if (r.matches.size() < 5 || scale_residual_rad(px, r, best) > opt_.star_id.match_tolerance_rad / 3.0) continue;
-      focal_scale_ = best;
-      K_ = K_nominal_;
-      K_.fx *= focal_scale_;
-      K_.fy *= focal_scale_;
-      dirs = dirs_at(focal_scale_);
+      use_focal_scale(best);
+      dirs = dirs_at(best);
       id = std::move(r);
       return true;
     }

@@ -177,6 +177,8 @@ class FrameProcessor {
   // FrameProcessorOptions::focal_search_fraction: identification over
   // focal-length scales about the current one; on success dirs, id, K_ and
   // focal_scale_ hold the refined scale's.
+  // The focal length in use: the nominal one times scale (K_, focal_scale_).
+  void use_focal_scale(double scale);
   // Camera directions of the pixels px with the nominal focal length times scale.
   std::vector<Eigen::Vector3d> directions_at(const std::vector<Eigen::Vector2d>& px, double scale) const;
   // q-method residual (rad) of r's identified stars at that scale.
