@@ -1,6 +1,6 @@
 // artms-calibrate CAMERA.yaml IMP_OUT... --out CAMERA_FIT.yaml: fits a
 // camera's focal length (fx = fy), radial distortion k1 (and, on request,
-// k2 and the principal point) to the stars artms-imp identified in solved
+// k2, the principal point and the tangential p1, p2) to the stars artms-imp identified in solved
 // frames (its attitude.csv and stars.csv), each frame's attitude fitted
 // with them, and writes the camera file with the fitted values.
 //
@@ -8,7 +8,8 @@
 // u_eci (BSC5 at the frames' epoch, proper motion applied) in camera axes
 // v = R_f u_eci, R_f = exp([d_f]x) R_f0 (R_f0: artms-imp's attitude,
 // d_f: a small rotation fitted per frame); x_n = (v_x / v_z, v_y / v_z);
-// pixel = c + f x_n (1 + k1 r^2 + k2 r^4). Least squares on the pixel
+// pixel = c + f D(x_n), D Brown's radial and tangential distortion
+// (imaging/camera.hpp). Least squares on the pixel
 // residuals by Gauss-Newton with Levenberg damping and a numerical
 // Jacobian; the parameters' 1-sigma from (J^T J)^-1 scaled by the residual
 // variance. Exit 0 on a fit, 2 on an error, 3 when fewer than 8 stars or
@@ -58,7 +59,7 @@ int run(int argc, char** argv) {
                "artms-calibrate"};
   std::string camera_path, out, time_utc;
   std::vector<std::string> runs;
-  bool fit_k2 = false, fit_principal = false;
+  bool fit_k2 = false, fit_principal = false, fit_tangential = false;
   double vmag_limit = 6.5;
   app.add_option("camera", camera_path, "the camera file artms-imp ran with")->required();
   app.add_option("imp_out", runs, "artms-imp output folders (attitude.csv, stars.csv)")->required();
@@ -66,6 +67,7 @@ int run(int argc, char** argv) {
   app.add_option("--time", time_utc, "UTC of the frames (the catalog's proper-motion epoch), as given to artms-imp")
       ->required();
   app.add_flag("--fit-k2", fit_k2, "also fit k2");
+  app.add_flag("--fit-tangential", fit_tangential, "also fit the tangential (decentring) distortion p1, p2");
   app.add_flag("--fit-principal-point", fit_principal,
                "also fit cx, cy (nearly the same as a rotation in a narrow field: needs many frames)");
   app.add_option("--vmag-limit", vmag_limit, "faintest catalog star read")->capture_default_str();
@@ -109,39 +111,62 @@ int run(int argc, char** argv) {
       std::fprintf(stderr, "artms-calibrate: fewer than 8 identified stars: nothing fitted\n");
       return 3;
     }
-    // Parameters: f, k1, [k2], [cx, cy], then 3 per frame.
+    // Parameters: f, k1, [k2], [cx, cy], [p1, p2], then 3 per frame.
     std::vector<std::string> names = {"f_px", "k1"};
-    if (fit_k2) names.push_back("k2");
+    int i_k2 = -1, i_c = -1, i_p = -1;
+    if (fit_k2) {
+      i_k2 = static_cast<int>(names.size());
+      names.push_back("k2");
+    }
     if (fit_principal) {
+      i_c = static_cast<int>(names.size());
       names.push_back("cx_px");
       names.push_back("cy_px");
+    }
+    if (fit_tangential) {
+      i_p = static_cast<int>(names.size());
+      names.push_back("p1");
+      names.push_back("p2");
     }
     const int n_cam = static_cast<int>(names.size());
     const int n = n_cam + 3 * F;
     VectorXd p = VectorXd::Zero(n);
     p[0] = 0.5 * (cam.fx_px + cam.fy_px);
     p[1] = cam.k1;
-    int i_k2 = -1, i_c = -1;
-    if (fit_k2) {
-      i_k2 = 2;
-      p[i_k2] = cam.k2;
-    }
-    if (fit_principal) {
-      i_c = fit_k2 ? 3 : 2;
+    if (i_k2 >= 0) p[i_k2] = cam.k2;
+    if (i_c >= 0) {
       p[i_c] = cam.cx_px;
       p[i_c + 1] = cam.cy_px;
     }
+    if (i_p >= 0) {
+      p[i_p] = cam.p1;
+      p[i_p + 1] = cam.p2;
+    }
+    const auto camera_at = [&](const VectorXd& x) {
+      imaging::CameraModel c = cam;
+      c.fx_px = c.fy_px = x[0];
+      c.k1 = x[1];
+      if (i_k2 >= 0) c.k2 = x[i_k2];
+      if (i_c >= 0) {
+        c.cx_px = x[i_c];
+        c.cy_px = x[i_c + 1];
+      }
+      if (i_p >= 0) {
+        c.p1 = x[i_p];
+        c.p2 = x[i_p + 1];
+      }
+      return c;
+    };
     const auto residuals = [&](const VectorXd& x) {
       VectorXd r(2 * n_obs);
-      const double f = x[0], k1 = x[1], k2 = i_k2 >= 0 ? x[i_k2] : cam.k2;
-      const double cx = i_c >= 0 ? x[i_c] : cam.cx_px, cy = i_c >= 0 ? x[i_c + 1] : cam.cy_px;
+      const imaging::CameraModel c = camera_at(x);
       for (int j = 0; j < n_obs; ++j) {
         const Obs& o = obs[static_cast<std::size_t>(j)];
-        const Vector3d v = rotation(x.segment<3>(n_cam + 3 * o.frame)) * R0[static_cast<std::size_t>(o.frame)] * o.u_eci;
-        const double xn = v.x() / v.z(), yn = v.y() / v.z(), r2 = xn * xn + yn * yn;
-        const double s = 1.0 + r2 * (k1 + k2 * r2);
-        r[2 * j] = cx + f * xn * s - o.x_px;
-        r[2 * j + 1] = cy + f * yn * s - o.y_px;
+        const Vector3d v =
+            rotation(x.segment<3>(n_cam + 3 * o.frame)) * R0[static_cast<std::size_t>(o.frame)] * o.u_eci;
+        const Eigen::Vector2d px = c.pixel_from_normalized({v.x() / v.z(), v.y() / v.z()});
+        r[2 * j] = px.x() - o.x_px;
+        r[2 * j + 1] = px.y() - o.y_px;
       }
       return r;
     };
@@ -203,16 +228,10 @@ int run(int argc, char** argv) {
     for (int k = 0; k < n_cam; ++k) {
       std::printf("  %-6s %.6g +- %.3g\n", names[static_cast<std::size_t>(k)].c_str(), p[k], std::sqrt(P(k, k)));
     }
-    cam.fx_px = cam.fy_px = p[0];
-    cam.k1 = p[1];
-    if (i_k2 >= 0) cam.k2 = p[i_k2];
-    if (i_c >= 0) {
-      cam.cx_px = p[i_c];
-      cam.cy_px = p[i_c + 1];
-    }
+    cam = camera_at(p);
     std::ofstream f(out);
     if (!f) throw std::runtime_error(out + ": cannot write");
-    char buf[256];
+    char buf[1024];
     f << "# Written by artms-calibrate from " << camera_path << ": " << F << " frames, " << n_obs
       << " identified stars.\n";
     std::snprintf(buf, sizeof buf, "# Pixel residual RMS %.3f px; f %.3f +- %.3f px, k1 %.4g +- %.2g.\n",
@@ -224,18 +243,29 @@ int run(int argc, char** argv) {
                   cam.width_px, cam.height_px, cam.pixel_pitch_m * 1e6, cam.bit_depth, cam.dn_shift_bits,
                   cam.gain_e_per_dn, cam.full_well_e, cam.bias_dn, cam.read_noise_e);
     f << buf;
-    std::snprintf(buf, sizeof buf, "  dark_current_e_per_s: %.9g\n\noptics:\n  focal_length_mm: %.9g\n",
-                  cam.dark_current_e_per_s, cam.fx_px * cam.pixel_pitch_m * 1e3);
+    std::snprintf(buf, sizeof buf, "  dark_current_e_per_s: %.9g\n  blooming: %s\n\noptics:\n  focal_length_mm: %.9g\n",
+                  cam.dark_current_e_per_s, cam.blooming ? "true" : "false", cam.fx_px * cam.pixel_pitch_m * 1e3);
     f << buf;
     std::snprintf(buf, sizeof buf,
-                  "  fx_px: %.6f\n  fy_px: %.6f\n  cx_px: %.6f\n  cy_px: %.6f\n  k1: %.9g\n  k2: %.9g\n"
-                  "  aperture_diameter_mm: %.9g\n  throughput_qe: %.9g\n  psf_sigma_px: %.9g\n",
-                  cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px, cam.k1, cam.k2, cam.aperture_diameter_m * 1e3,
+                  "  fx_px: %.6f\n  fy_px: %.6f\n  cx_px: %.6f\n  cy_px: %.6f\n  k1: %.9g\n  k2: %.9g\n  p1: %.9g\n"
+                  "  p2: %.9g\n  aperture_diameter_mm: %.9g\n  throughput_qe: %.9g\n  psf_sigma_px: %.9g\n",
+                  cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px, cam.k1, cam.k2, cam.p1, cam.p2, cam.aperture_diameter_m * 1e3,
                   cam.throughput_qe, cam.psf_sigma_px);
     f << buf;
     std::snprintf(buf, sizeof buf,
-                  "\nphotometry:\n  exposure_s: %.9g\n  v0_photon_flux_per_s_m2: %.9g\n  background_e_per_px_per_s: %.9g\n",
-                  cam.exposure_s, cam.v0_photon_flux_per_s_m2, cam.background_e_per_px_per_s);
+                  "  vignetting_corner_loss: %.9g\n  psf_growth_corner: %.9g\n  psf_colour_slope_per_mag: %.9g\n",
+                  cam.vignetting_corner_loss, cam.psf_growth_corner, cam.psf_colour_slope_per_mag);
+    f << buf;
+    std::snprintf(buf, sizeof buf,
+                  "\nphotometry:\n  exposure_s: %.9g\n  v0_photon_flux_per_s_m2: %.9g\n  background_e_per_px_per_s: %.9g\n"
+                  "  background_gradient: %.9g\n",
+                  cam.exposure_s, cam.v0_photon_flux_per_s_m2, cam.background_e_per_px_per_s, cam.background_gradient);
+    f << buf;
+    std::snprintf(buf, sizeof buf,
+                  "\nstray_light:\n  sun_edge_e_per_px_per_s: %.9g\n  moon_edge_e_per_px_per_s: %.9g\n"
+                  "  earth_edge_e_per_px_per_s: %.9g\n  falloff_deg: %.9g\n",
+                  cam.stray_sun_edge_e_per_px_per_s, cam.stray_moon_edge_e_per_px_per_s,
+                  cam.stray_earth_edge_e_per_px_per_s, cam.stray_falloff_rad / astro::kDegToRad);
     f << buf;
     std::snprintf(buf, sizeof buf, "\nhot_pixels:\n  count: %d\n  dark_min_e_per_s: %.9g\n  dark_max_e_per_s: %.9g\n  seed: %llu\n",
                   cam.hot_pixel_count, cam.hot_pixel_dark_min_e_per_s, cam.hot_pixel_dark_max_e_per_s,

@@ -192,6 +192,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
         {"fx_px", u.camera_calibration.fx_px}, {"fy_px", u.camera_calibration.fy_px},
         {"cx_px", u.camera_calibration.cx_px}, {"cy_px", u.camera_calibration.cy_px},
         {"k1", u.camera_calibration.k1}, {"k2", u.camera_calibration.k2},
+        {"p1", u.camera_calibration.p1}, {"p2", u.camera_calibration.p2},
         {"psf_sigma_px", u.camera_calibration.psf_sigma_px},
         {"gain_e_per_dn", u.camera_calibration.gain_e_per_dn},
         {"saturation_dn", u.camera_calibration.saturation_dn},
@@ -328,6 +329,8 @@ ObserverUplink read_uplink(const std::string& path) {
       cal.cy_px = k.at("cy_px").get<double>();
       cal.k1 = k.at("k1").get<double>();
       cal.k2 = k.at("k2").get<double>();
+      cal.p1 = k.value("p1", 0.0);
+      cal.p2 = k.value("p2", 0.0);
       cal.psf_sigma_px = k.at("psf_sigma_px").get<double>();
       cal.gain_e_per_dn = k.at("gain_e_per_dn").get<double>();
       cal.saturation_dn = k.at("saturation_dn").get<double>();

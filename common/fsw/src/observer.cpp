@@ -35,7 +35,7 @@ bus::ImpMeasurement imp_measurement(std::uint32_t frame_seq, std::int64_t t_ns, 
 }  // namespace
 
 imp::Intrinsics intrinsics_from(const config::CameraCalibration& c) {
-  return {c.width_px, c.height_px, c.fx_px, c.fy_px, c.cx_px, c.cy_px, c.k1, c.k2};
+  return {c.width_px, c.height_px, c.fx_px, c.fy_px, c.cx_px, c.cy_px, c.k1, c.k2, c.p1, c.p2};
 }
 
 imp::FrameProcessorOptions frame_processor_options(const config::CameraCalibration& c,
@@ -267,7 +267,13 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
   }
   ++n_.frames_received;
   if (!processor_) return;
-  const std::span<const std::uint16_t> pixels(f.pixels.data(), f.pixels.size());
+  std::span<const std::uint16_t> pixels(f.pixels.data(), f.pixels.size());
+  // Stored values are DN * 2^dn_shift_bits (MSB-aligned sensors): IMP works in DN.
+  if (const int shift = up_.camera_calibration.dn_shift_bits; shift > 0) {
+    decoded_.resize(f.pixels.size());
+    for (std::size_t i = 0; i < f.pixels.size(); ++i) decoded_[i] = static_cast<std::uint16_t>(f.pixels[i] >> shift);
+    pixels = decoded_;
+  }
   const astro::TimeTT tf{f.time_tag_tt_ns};
   const imp::FrameSummary fr = processor_->process(pixels, tf);
   rep.status = fr.attitude_usable ? bus::FrameStatus::kOk

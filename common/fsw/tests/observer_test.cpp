@@ -10,6 +10,7 @@
 
 #include "artms/astro/elements.hpp"
 #include "artms/fsw/observer.hpp"
+#include "artms/imaging/renderer.hpp"
 #include "sod_scenario.hpp"
 
 namespace artms::fsw {
@@ -251,6 +252,81 @@ TEST(Observer, OutputsDoNotDependOnWhenWithinAStepAnInputArrived) {
   // for step 7).
   ASSERT_EQ(late.size(), early.size());
   for (std::size_t i = 0; i < late.size(); ++i) EXPECT_EQ(late[i], early[i]) << "line " << i;
+}
+
+}  // namespace
+}  // namespace artms::fsw
+
+namespace artms::fsw {
+namespace {
+
+// IMP in the observer works in DN: a frame stored MSB-aligned (DN x 16, the
+// camera calibration's dn_shift_bits = 4) gives the same attitude and
+// candidates as the same frame in DN with shift 0; the shifted frame read
+// as DN (a calibration that forgot the shift) does not.
+TEST(Observer, ImpUndoesTheUplinkedPixelEncoding) {
+  imaging::CameraModel cam = imaging::CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst_ideal.yaml");
+  const std::string catalog = std::string(ARTMS_DATA_DIR) + "/stars/bsc5.dat";
+  imaging::RenderOptions ro;
+  const imaging::StarCatalog bsc = imaging::StarCatalog::load_bsc5(catalog, 6.5);
+  const imaging::FrameRenderer renderer(cam, bsc, ro);
+  imaging::RenderRequest req;
+  req.observer = "SV4";
+  req.frame_index = 1;
+  req.t = kT0.plus_seconds(60.0);
+  req.observer_eci = orbit();
+  // Boresight along -velocity, camera y towards the Earth.
+  const Eigen::Vector3d z = -req.observer_eci.v_mps.normalized();
+  const Eigen::Vector3d y = (-req.observer_eci.r_m - (-req.observer_eci.r_m).dot(z) * z).normalized();
+  Eigen::Matrix3d R;
+  R.row(0) = y.cross(z).transpose();
+  R.row(1) = y.transpose();
+  R.row(2) = z.transpose();
+  req.q_cam_from_eci = Eigen::Quaterniond(R);
+  const imaging::RenderedFrame rf = renderer.render(req);
+  ASSERT_FALSE(rf.pixels.empty());
+
+  const auto run = [&](int shift_in_frame, int shift_uplinked) {
+    ObserverSetup s = setup();
+    auto& c = s.uplink.camera_calibration;
+    c.width_px = cam.width_px;
+    c.height_px = cam.height_px;
+    c.fx_px = cam.fx_px;
+    c.fy_px = cam.fy_px;
+    c.cx_px = cam.cx_px;
+    c.cy_px = cam.cy_px;
+    c.psf_sigma_px = cam.psf_sigma_px;
+    c.gain_e_per_dn = cam.gain_e_per_dn;
+    c.saturation_dn = cam.max_dn();
+    c.dn_shift_bits = shift_uplinked;
+    s.uplink.star_catalog_file = "stars.csv";  // the uplinked file's name; its stars as read:
+    for (const auto& st : bsc.stars()) s.star_catalog.push_back({st.catalog_id, st.unit_eci_at(kT0)});
+    Observer o(s, "observer-SV4");
+    bus::CameraFrame f = frame(1);
+    f.width = static_cast<std::uint16_t>(cam.width_px);
+    f.height = static_cast<std::uint16_t>(cam.height_px);
+    f.pixels.clear();
+    for (const auto v : rf.pixels) f.pixels.push_back(static_cast<std::uint16_t>(v << shift_in_frame));
+    ObserverInputs in;
+    in.frames = {f};
+    std::vector<bus::ImpReport> reports;
+    for (std::int64_t k = 1; k <= 3; ++k) {
+      auto out = o.step(tick(k), k == 1 ? std::move(in) : ObserverInputs{});
+      for (auto& r : out.imp) reports.push_back(std::move(r));
+    }
+    EXPECT_EQ(reports.size(), 1U);
+    return reports.empty() ? bus::ImpReport{} : reports[0];
+  };
+  const bus::ImpReport dn = run(0, 0), encoded = run(4, 4), misread = run(4, 0);
+  ASSERT_EQ(dn.status, bus::FrameStatus::kOk);
+  EXPECT_EQ(encoded.status, bus::FrameStatus::kOk);
+  EXPECT_EQ(encoded.stars_matched, dn.stars_matched);
+  EXPECT_EQ(encoded.candidates, dn.candidates);
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_DOUBLE_EQ(encoded.q_cam_from_eci[i], dn.q_cam_from_eci[i]);
+  EXPECT_DOUBLE_EQ(encoded.attitude_sigma_arcsec, dn.attitude_sigma_arcsec);
+  EXPECT_TRUE(misread.status != bus::FrameStatus::kOk || misread.stars_matched != dn.stars_matched ||
+              misread.attitude_sigma_arcsec != dn.attitude_sigma_arcsec)
+      << "a frame read without its shift should not pass for the same frame";
 }
 
 }  // namespace

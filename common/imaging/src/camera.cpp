@@ -3,6 +3,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -134,6 +136,24 @@ class Reader {
     return v.Scalar();
   }
 
+  // true or false.
+  std::optional<bool> boolean(const Entries& e, const std::string& path, std::string_view key) const {
+    const auto it = e.find(key);
+    if (it == e.end()) return std::nullopt;
+    const YAML::Node& v = it->second.value;
+    bool x = false;
+    bool parsed = v.IsScalar();
+    if (parsed) {
+      try {
+        x = v.as<bool>();
+      } catch (const YAML::Exception&) {
+        parsed = false;
+      }
+    }
+    if (!parsed) fail(v.Mark(), join(path, key), "expected true or false, got " + describe(v));
+    return x;
+  }
+
   // The value node of an optional sub-mapping (undefined node if absent).
   static YAML::Node child(const Entries& e, std::string_view key) {
     const auto it = e.find(key);
@@ -180,7 +200,7 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
 
   CameraModel cam;
   const auto top = rd.entries(
-      doc, "", {"name", "sensor", "optics", "photometry", "hot_pixels", "exclusion_deg", "star_id"});
+      doc, "", {"name", "sensor", "optics", "photometry", "hot_pixels", "exclusion_deg", "star_id", "stray_light"});
   if (auto name = rd.text(top, "", "name")) cam.name = *name;
 
   // sensor: geometry (required) and detector parameters.
@@ -191,7 +211,7 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     const auto e =
         rd.entries(node, p,
                    {"width_px", "height_px", "pixel_pitch_um", "bit_depth", "dn_shift_bits", "gain_e_per_dn",
-                    "full_well_e", "bias_dn", "read_noise_e", "dark_current_e_per_s"});
+                    "full_well_e", "bias_dn", "read_noise_e", "dark_current_e_per_s", "blooming"});
     cam.width_px = static_cast<int>(*rd.integer(e, node, p, "width_px", true, 1, 100000));
     cam.height_px = static_cast<int>(*rd.integer(e, node, p, "height_px", true, 1, 100000));
     cam.pixel_pitch_m = *rd.number(e, node, p, "pixel_pitch_um", true, positive, "> 0") * 1e-6;
@@ -209,6 +229,7 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     cam.dark_current_e_per_s =
         rd.number(e, node, p, "dark_current_e_per_s", false, non_negative, ">= 0")
             .value_or(cam.dark_current_e_per_s);
+    cam.blooming = rd.boolean(e, p, "blooming").value_or(false);
   }
 
   // optics: focal length (required), intrinsics, distortion, aperture, PSF.
@@ -217,9 +238,9 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     if (!node.IsDefined()) rd.fail(doc.Mark(), "optics", "missing (required)");
     const std::string p = "optics";
     const auto e = rd.entries(node, p,
-                              {"focal_length_mm", "fx_px", "fy_px", "cx_px", "cy_px", "k1", "k2",
+                              {"focal_length_mm", "fx_px", "fy_px", "cx_px", "cy_px", "k1", "k2", "p1", "p2",
                                "aperture_diameter_mm", "throughput_qe", "psf_sigma_px", "vignetting_corner_loss",
-                               "psf_growth_corner"});
+                               "psf_growth_corner", "psf_colour_slope_per_mag"});
     cam.focal_length_m = *rd.number(e, node, p, "focal_length_mm", true, positive, "> 0") * 1e-3;
     const double f_px = cam.focal_length_m / cam.pixel_pitch_m;
     cam.fx_px = rd.number(e, node, p, "fx_px", false, positive, "> 0").value_or(f_px);
@@ -228,6 +249,9 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     cam.cy_px = rd.number(e, node, p, "cy_px", false).value_or((cam.height_px - 1) / 2.0);
     cam.k1 = rd.number(e, node, p, "k1", false).value_or(0.0);
     cam.k2 = rd.number(e, node, p, "k2", false).value_or(0.0);
+    const auto small = [](double x) { return std::abs(x) <= 0.1; };
+    cam.p1 = rd.number(e, node, p, "p1", false, small, "in [-0.1, 0.1]").value_or(0.0);
+    cam.p2 = rd.number(e, node, p, "p2", false, small, "in [-0.1, 0.1]").value_or(0.0);
     if (auto d = rd.number(e, node, p, "aperture_diameter_mm", false, positive, "> 0")) {
       cam.aperture_diameter_m = *d * 1e-3;
     }
@@ -247,6 +271,27 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
         rd.number(e, node, p, "psf_growth_corner", false, [](double x) { return x >= 0.0 && x <= 5.0; },
                   "in [0, 5]")
             .value_or(0.0);
+    cam.psf_colour_slope_per_mag =
+        rd.number(e, node, p, "psf_colour_slope_per_mag", false, [](double x) { return x >= -0.5 && x <= 0.5; },
+                  "in [-0.5, 0.5]")
+            .value_or(0.0);
+  }
+
+  if (const YAML::Node node = Reader::child(top, "stray_light"); node.IsDefined()) {
+    const std::string p = "stray_light";
+    const auto e = rd.entries(node, p,
+                              {"sun_edge_e_per_px_per_s", "moon_edge_e_per_px_per_s", "earth_edge_e_per_px_per_s",
+                               "falloff_deg"});
+    cam.stray_sun_edge_e_per_px_per_s =
+        rd.number(e, node, p, "sun_edge_e_per_px_per_s", false, non_negative, ">= 0").value_or(0.0);
+    cam.stray_moon_edge_e_per_px_per_s =
+        rd.number(e, node, p, "moon_edge_e_per_px_per_s", false, non_negative, ">= 0").value_or(0.0);
+    cam.stray_earth_edge_e_per_px_per_s =
+        rd.number(e, node, p, "earth_edge_e_per_px_per_s", false, non_negative, ">= 0").value_or(0.0);
+    if (auto f = rd.number(e, node, p, "falloff_deg", false, [](double x) { return x > 0.0 && x <= 90.0; },
+                           "in (0, 90]")) {
+      cam.stray_falloff_rad = *f * astro::kDegToRad;
+    }
   }
 
   if (const YAML::Node node = Reader::child(top, "photometry"); node.IsDefined()) {
@@ -331,14 +376,39 @@ double CameraModel::electrons_from_vmag(double vmag) const {
   return zero_point_e_per_s() * std::pow(10.0, -0.4 * vmag) * exposure_s;
 }
 
+namespace {
+// Brown's distortion of normalised coordinates (camera.hpp).
+Vec2 distort(const Vec2& n, double k1, double k2, double p1, double p2) {
+  const double x = n.x(), y = n.y(), r2 = x * x + y * y;
+  const double s = 1.0 + r2 * (k1 + k2 * r2);
+  return {x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x), y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
+}
+}  // namespace
+
 Vec2 CameraModel::pixel_from_normalized(const Vec2& xn) const {
-  const double r2 = xn.squaredNorm();
-  const double scale = 1.0 + r2 * (k1 + k2 * r2);
-  return {cx_px + fx_px * xn.x() * scale, cy_px + fy_px * xn.y() * scale};
+  const Vec2 d = distort(xn, k1, k2, p1, p2);
+  return {cx_px + fx_px * d.x(), cy_px + fy_px * d.y()};
 }
 
 Vec2 CameraModel::normalized_from_pixel(const Vec2& px) const {
   const Vec2 xd((px.x() - cx_px) / fx_px, (px.y() - cy_px) / fy_px);
+  if (p1 != 0.0 || p2 != 0.0) {
+    // Newton in 2-D on distort(n) = xd from n = xd.
+    Vec2 n = xd;
+    for (int it = 0; it < 50; ++it) {
+      const double x = n.x(), y = n.y(), r2 = x * x + y * y;
+      const double s = 1.0 + r2 * (k1 + k2 * r2);
+      const double ds = 2.0 * (k1 + 2.0 * k2 * r2);  // d s / d x = ds x, d s / d y = ds y
+      Eigen::Matrix2d J;
+      J << s + ds * x * x + 2.0 * p1 * y + 6.0 * p2 * x, ds * x * y + 2.0 * p1 * x + 2.0 * p2 * y,
+          ds * x * y + 2.0 * p1 * x + 2.0 * p2 * y, s + ds * y * y + 6.0 * p1 * y + 2.0 * p2 * x;
+      const Vec2 step = J.inverse() * (distort(n, k1, k2, p1, p2) - xd);
+      if (!step.allFinite()) break;
+      n -= step;
+      if (step.norm() <= 1e-16 * std::max(1.0, n.norm())) break;
+    }
+    return n;
+  }
   const double rd = xd.norm();
   if (rd == 0.0 || (k1 == 0.0 && k2 == 0.0)) return xd;
   // Solve g(r) = r (1 + k1 r^2 + k2 r^4) - rd = 0 for the undistorted radius

@@ -6,6 +6,7 @@
 
 #include "artms/astro/constants.hpp"
 #include "artms/dynamics/ephemeris.hpp"
+#include "artms/dynamics/shadow.hpp"
 
 namespace artms::imaging {
 
@@ -81,7 +82,9 @@ std::vector<PointSource> FrameRenderer::faint_star_sources(const Eigen::Quaterni
         if (!px) continue;
         const double w = hashed_uniform(options_.sky_seed, idx, kStreamFaint + 3);
         const double vmag = std::log10(a0 + w * (a1 - a0)) / 0.48;
-        out.push_back({px->x(), px->y(), cam.electrons_from_vmag(vmag)});
+        // Colour: B-V uniform in [0, 1.5] (the bulk of V 6.5-9 field stars).
+        const double bv = 1.5 * hashed_uniform(options_.sky_seed, idx, kStreamFaint + 4);
+        out.push_back({px->x(), px->y(), cam.electrons_from_vmag(vmag), bv});
         ++*count;
       }
     }
@@ -153,11 +156,53 @@ RenderedFrame FrameRenderer::render(const RenderRequest& req) const {
   }
   if (f.dropped) return f;
   // Sun in or near the field washes the frame out.
-  std::optional<StrayLight> stray;
+  std::vector<StrayLight> stray;
+  const Vec3 sun_cam = R * (r_sun - r_obs).normalized();
   if (f.exclusion.excluded && f.exclusion.reason == kExclusionSun) {
-    stray = sun_washout(cam, R * (r_sun - r_obs).normalized());
+    if (auto s = sun_washout(cam, sun_cam)) stray.push_back(*s);
+  }
+  // Stray light from the bodies near their exclusion cones (CameraModel::stray_*).
+  const bool sun_up = dynamics::sunlit_fraction(r_obs, r_sun, dynamics::ShadowModel::kConical) > 0.0;
+  if (sun_up) {
+    if (auto s = stray_light_beyond_exclusion(cam, sun_cam, cam.sun_exclusion_rad, cam.stray_sun_edge_e_per_px_per_s)) {
+      stray.push_back(*s);
+    }
+  }
+  if (cam.stray_moon_edge_e_per_px_per_s > 0.0 &&
+      !line_of_sight_blocked(r_obs, r_moon, astro::kRadiusEarth_m + kAtmosphereMargin_m)) {
+    // Illuminated fraction (1 + cos phase) / 2, the phase angle at the Moon
+    // between the Sun and the observer.
+    const double cos_phase = (r_sun - r_moon).normalized().dot((r_obs - r_moon).normalized());
+    if (auto s = stray_light_beyond_exclusion(cam, R * (r_moon - r_obs).normalized(), cam.moon_exclusion_rad,
+                                              cam.stray_moon_edge_e_per_px_per_s * 0.5 * (1.0 + cos_phase))) {
+      stray.push_back(*s);
+    }
+  }
+  if (cam.stray_earth_edge_e_per_px_per_s > 0.0) {
+    // The limb point nearest the boresight: from the observer, the direction
+    // at the Earth's angular radius from nadir, in the plane of nadir and
+    // the boresight; its local vertical decides how sunlit it is.
+    const Vec3 nadir = (-r_obs).normalized();
+    const double rho = earth_angular_radius_rad(r_obs);
+    Vec3 side = boresight - boresight.dot(nadir) * nadir;
+    if (side.norm() < 1e-9) side = nadir.unitOrthogonal();
+    side.normalize();
+    const Vec3 to_limb = std::cos(rho) * nadir + std::sin(rho) * side;
+    const double dist = r_obs.norm() * std::cos(rho);  // tangent length
+    const Vec3 limb_point = r_obs + dist * to_limb;
+    const double cos_zenith = limb_point.normalized().dot((r_sun - limb_point).normalized());
+    if (cos_zenith > 0.0) {
+      if (auto s = stray_light_beyond_exclusion(cam, R * to_limb, cam.earth_limb_exclusion_rad,
+                                                cam.stray_earth_edge_e_per_px_per_s * cos_zenith)) {
+        stray.push_back(*s);
+      }
+    }
   }
   f.pixels = former_.render(sources, seed, options_.noise, stray);
+  // Pixel encoding: DN shifted up as the camera stores them (MSB-aligned).
+  if (cam.dn_shift_bits > 0) {
+    for (auto& v : f.pixels) v = static_cast<std::uint16_t>(v << cam.dn_shift_bits);
+  }
   return f;
 }
 

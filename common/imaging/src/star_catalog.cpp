@@ -152,6 +152,7 @@ StarCatalog StarCatalog::parse_bsc5(std::istream& in, const std::string& source_
     s.ra_rad = (ra_h + ra_m / 60.0 + ra_s / 3600.0) * 15.0 * astro::kDegToRad;
     s.dec_rad = dec_deg * astro::kDegToRad;
     s.vmag = p.required("Vmag", 103, 107, -2.0, 20.0);
+    s.b_minus_v = p.number("B-V", 110, 114).value_or(0.65);
     s.pm_ra_cosdec_radpyr = p.number("pmRA", 149, 154).value_or(0.0) * kArcsec;
     s.pm_dec_radpyr = p.number("pmDE", 155, 160).value_or(0.0) * kArcsec;
     if (s.vmag <= vmag_limit) stars.push_back(s);

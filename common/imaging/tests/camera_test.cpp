@@ -128,6 +128,45 @@ TEST(CameraModel, PixelEncodingAndMatchToleranceKeys) {
   EXPECT_NE(tol.find("star_id.match_tolerance_arcsec"), std::string::npos) << tol;
 }
 
+// The real-hardware effects: off when a file does not name them, on with
+// the shipped nst.yaml's values, off in nst_ideal.yaml; bad values named.
+TEST(CameraModel, RealHardwareEffectKeys) {
+  const CameraModel minimal = CameraModel::parse(kMinimal, "cam.yaml");
+  EXPECT_FALSE(minimal.blooming);
+  EXPECT_DOUBLE_EQ(minimal.psf_colour_slope_per_mag, 0.0);
+  EXPECT_DOUBLE_EQ(minimal.stray_earth_edge_e_per_px_per_s, 0.0);
+  const CameraModel nst = CameraModel::load(kNstPath);
+  EXPECT_TRUE(nst.blooming);
+  EXPECT_EQ(nst.dn_shift_bits, 4);
+  EXPECT_DOUBLE_EQ(nst.psf_colour_slope_per_mag, 0.08);
+  EXPECT_DOUBLE_EQ(nst.vignetting_corner_loss, 0.3);
+  EXPECT_DOUBLE_EQ(nst.stray_sun_edge_e_per_px_per_s, 300.0);
+  EXPECT_DOUBLE_EQ(nst.stray_moon_edge_e_per_px_per_s, 50.0);
+  EXPECT_DOUBLE_EQ(nst.stray_earth_edge_e_per_px_per_s, 150.0);
+  EXPECT_NEAR(nst.stray_falloff_rad, 4.0 * astro::kDegToRad, 1e-15);
+  const CameraModel ideal = CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst_ideal.yaml");
+  EXPECT_FALSE(ideal.blooming);
+  EXPECT_EQ(ideal.dn_shift_bits, 0);
+  EXPECT_DOUBLE_EQ(ideal.vignetting_corner_loss + ideal.psf_growth_corner + ideal.background_gradient +
+                       ideal.psf_colour_slope_per_mag + ideal.stray_sun_edge_e_per_px_per_s +
+                       ideal.stray_moon_edge_e_per_px_per_s + ideal.stray_earth_edge_e_per_px_per_s,
+                   0.0);
+  EXPECT_EQ(ideal.fx_px, nst.fx_px);
+  const std::string bloom = parse_error(
+      "sensor: {width_px: 1280, height_px: 1024, pixel_pitch_um: 5.3, bit_depth: 12, blooming: maybe}\n"
+      "optics: {focal_length_mm: 30}\n");
+  EXPECT_NE(bloom.find("sensor.blooming"), std::string::npos) << bloom;
+  EXPECT_NE(bloom.find("true or false"), std::string::npos) << bloom;
+  const std::string fall = parse_error(std::string(kMinimal) + "stray_light: {falloff_deg: 0}\n");
+  EXPECT_NE(fall.find("stray_light.falloff_deg"), std::string::npos) << fall;
+  const std::string rate = parse_error(std::string(kMinimal) + "stray_light: {earth_edge_e_per_px_per_s: -1}\n");
+  EXPECT_NE(rate.find("stray_light.earth_edge_e_per_px_per_s"), std::string::npos) << rate;
+  const std::string slope = parse_error(
+      "sensor: {width_px: 1280, height_px: 1024, pixel_pitch_um: 5.3, bit_depth: 12}\n"
+      "optics: {focal_length_mm: 30, psf_colour_slope_per_mag: 2}\n");
+  EXPECT_NE(slope.find("optics.psf_colour_slope_per_mag"), std::string::npos) << slope;
+}
+
 TEST(CameraModel, LoadErrorsNameFileLineColumnAndKey) {
   // Unknown (misspelt) key on line 4, column 3.
   const std::string typo = parse_error(
@@ -229,6 +268,36 @@ TEST(CameraModel, ProjectUnprojectRoundTripWithDistortion) {
   const Vec2 xn = cam.normalized_from_pixel(corner);
   const Vec2 ideal(cam.cx_px + cam.fx_px * xn.x(), cam.cy_px + cam.fy_px * xn.y());
   EXPECT_GT((ideal - corner).norm(), 3.0);
+}
+
+// Brown's tangential terms (camera.hpp): a value worked by hand, and the
+// round trip through the 2-D Newton inversion.
+TEST(CameraModel, TangentialDistortionValueAndRoundTrip) {
+  CameraModel cam;
+  cam.k1 = -0.2;
+  cam.k2 = 0.1;
+  cam.p1 = 1e-3;
+  cam.p2 = -2e-3;
+  // xn = (0.1, -0.05): r^2 = 0.0125, s = 1 - 0.2 * 0.0125 + 0.1 * 0.0125^2 = 0.997515625;
+  // xd = 0.1 s + 2e-3 * 0.1 * -0.05 - 2e-3 (0.0125 + 0.02) = 0.0996765625,
+  // yd = -0.05 s + 1e-3 (0.0125 + 0.005) + 2 * -2e-3 * 0.1 * -0.05 = -0.04983828125.
+  const Vec2 px = cam.pixel_from_normalized(Vec2(0.1, -0.05));
+  EXPECT_NEAR((px.x() - cam.cx_px) / cam.fx_px, 0.0996765625, 1e-12);
+  EXPECT_NEAR((px.y() - cam.cy_px) / cam.fy_px, -0.04983828125, 1e-12);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> ux(-0.5, 1279.5), uy(-0.5, 1023.5);
+  double worst = 0.0;
+  for (int k = 0; k < 5000; ++k) {
+    const Vec2 p(ux(rng), uy(rng));
+    worst = std::max(worst, (cam.pixel_from_normalized(cam.normalized_from_pixel(p)) - p).norm());
+  }
+  EXPECT_LT(worst, 1e-9);
+  const CameraModel file = CameraModel::parse(
+      "sensor: {width_px: 1280, height_px: 1024, pixel_pitch_um: 5.3, bit_depth: 12}\n"
+      "optics: {focal_length_mm: 30, p1: 0.001, p2: -0.002}\n",
+      "cam.yaml");
+  EXPECT_DOUBLE_EQ(file.p1, 1e-3);
+  EXPECT_DOUBLE_EQ(file.p2, -2e-3);
 }
 
 }  // namespace

@@ -379,14 +379,14 @@ TEST(ImageNoise, SaturationAndQuantisationBounds) {
                                      {900.0, 100.0, 50.0}};
   const auto stray = sun_washout(cam, Vec3(std::sin(40 * kDegToRad), 0, std::cos(40 * kDegToRad)));
   ASSERT_TRUE(stray.has_value());
-  const std::vector<std::uint16_t> f = former.render(src, 77, {}, stray);
+  const std::vector<std::uint16_t> f = former.render(src, 77, {}, std::span(&*stray, 1));
   const auto max_dn = *std::max_element(f.begin(), f.end());
   EXPECT_EQ(max_dn, 4095);
   EXPECT_EQ(f[400 * 1280 + 300], 4095);
   EXPECT_TRUE(std::all_of(f.begin(), f.end(), [](std::uint16_t v) { return v <= 4095; }));
   // Float output is clipped to the same range, and integer-valued output
   // is what render() returns.
-  const std::vector<float> ff = former.render_float(src, 77, {}, stray);
+  const std::vector<float> ff = former.render_float(src, 77, {}, std::span(&*stray, 1));
   EXPECT_LE(*std::max_element(ff.begin(), ff.end()), 4095.0f);
   EXPECT_GE(*std::min_element(ff.begin(), ff.end()), 0.0f);
   const std::vector<float> nf = former.render_float(src, 0, NoiseOptions::noise_free());
@@ -429,7 +429,7 @@ TEST(ImageWashout, SunNearTheFieldRaisesARampTowardsIt) {
   const ImageFormer former(cam);
   NoiseOptions opts = NoiseOptions::noise_free();
   opts.hot_pixels = false;
-  const std::vector<float> f = former.render_float({}, 0, opts, s);
+  const std::vector<float> f = former.render_float({}, 0, opts, std::span(&*s, 1));
   const float top = f[640], middle = f[512 * 1280 + 640], bottom = f[1023 * 1280 + 640];
   EXPECT_GT(top, middle);
   EXPECT_GT(middle, bottom);
@@ -439,6 +439,92 @@ TEST(ImageWashout, SunNearTheFieldRaisesARampTowardsIt) {
   const auto closer =
       sun_washout(cam, Vec3(0, -std::sin(10 * kDegToRad), std::cos(10 * kDegToRad)));
   EXPECT_GT(closer->centre_rate_e_per_px_per_s, s->centre_rate_e_per_px_per_s);
+}
+
+// Blooming: a source far above the full well spills along its column only,
+// and the charge is conserved; without blooming the excess is lost.
+TEST(ImageFormerRealism, BloomingSpillsAlongTheColumnAndConservesCharge) {
+  CameraModel cam;
+  cam.hot_pixel_count = 0;
+  cam.blooming = true;
+  const ImageFormer former(cam);
+  NoiseOptions opts = NoiseOptions::noise_free();
+  opts.background = false;
+  opts.dark_current = false;
+  const std::vector<PointSource> star{{640.0, 512.0, 2.0e6}};  // ~200 full wells
+  const std::vector<float> e = former.expected_electrons(star, opts);
+  double total = 0.0;
+  int full_in_column = 0, full_in_row = 0;
+  for (std::size_t i = 0; i < e.size(); ++i) total += e[i];
+  for (int y = 0; y < 1024; ++y) full_in_column += e[static_cast<std::size_t>(y) * 1280 + 640] >= 0.999f * 1e4f;
+  for (int x = 0; x < 1280; ++x) full_in_row += e[512u * 1280u + static_cast<std::size_t>(x)] >= 0.999f * 1e4f;
+  EXPECT_NEAR(total, 2.0e6, 2.0e6 * 1e-4);  // spilt, not lost
+  EXPECT_GT(full_in_column, 3 * full_in_row);  // a vertical streak
+  EXPECT_GT(full_in_column, 60);
+  for (const float v : e) EXPECT_LE(v, 1e4f * 1.0001f);
+  cam.blooming = false;
+  const std::vector<float> clipped = ImageFormer(cam).expected_electrons(star, opts);
+  int full_column_off = 0;
+  for (int y = 0; y < 1024; ++y) full_column_off += clipped[static_cast<std::size_t>(y) * 1280 + 640] >= 1e4f;
+  EXPECT_LT(full_column_off, full_in_column / 3);
+}
+
+// Chromatic PSF: a red star (B-V 1.6) spreads wider than a blue one (B-V
+// -0.1) by the configured slope; solar-coloured sources are unchanged.
+TEST(ImageFormerRealism, ColourWidensThePsfByTheConfiguredSlope) {
+  CameraModel cam;
+  cam.hot_pixel_count = 0;
+  cam.psf_colour_slope_per_mag = 0.1;
+  const ImageFormer former(cam);
+  NoiseOptions opts = NoiseOptions::sources_only();
+  const auto second_moment = [&](double bv) {
+    const std::vector<PointSource> star{{640.3, 512.6, 1e5, bv}};
+    const std::vector<float> e = former.expected_electrons(star, opts);
+    double s0 = 0.0, s2 = 0.0;
+    for (int y = 500; y < 525; ++y) {
+      for (int x = 628; x < 653; ++x) {
+        const double v = e[static_cast<std::size_t>(y) * 1280 + static_cast<std::size_t>(x)];
+        s0 += v;
+        s2 += v * (std::pow(x - 640.3, 2) + std::pow(y - 512.6, 2));
+      }
+    }
+    return std::sqrt(s2 / s0 / 2.0 - 1.0 / 12.0);  // per-axis sigma, pixel box removed
+  };
+  EXPECT_NEAR(second_moment(kSolarBMinusV), cam.psf_sigma_px, 0.01);
+  EXPECT_NEAR(second_moment(1.6), cam.psf_sigma_px * (1.0 + 0.1 * (1.6 - kSolarBMinusV)), 0.01);
+  EXPECT_NEAR(second_moment(-0.1), cam.psf_sigma_px * (1.0 + 0.1 * (-0.1 - kSolarBMinusV)), 0.01);
+}
+
+// Stray light beyond an exclusion cone: the edge rate at the cone, falling
+// by e per falloff angle, ramping towards the body; off when the rate is 0.
+TEST(ImageFormerRealism, StrayLightBeyondExclusionFallsOffWithAngle) {
+  CameraModel cam;
+  cam.stray_falloff_rad = 4.0 * kDegToRad;
+  const auto at = [&](double deg) {
+    return Vec3(0.0, -std::sin(deg * kDegToRad), std::cos(deg * kDegToRad));
+  };
+  EXPECT_FALSE(stray_light_beyond_exclusion(cam, at(50), cam.sun_exclusion_rad, 0.0).has_value());
+  const auto edge = stray_light_beyond_exclusion(cam, at(45), cam.sun_exclusion_rad, 300.0);
+  const auto far = stray_light_beyond_exclusion(cam, at(53), cam.sun_exclusion_rad, 300.0);
+  const auto inside = stray_light_beyond_exclusion(cam, at(30), cam.sun_exclusion_rad, 300.0);
+  ASSERT_TRUE(edge && far && inside);
+  EXPECT_NEAR(edge->centre_rate_e_per_px_per_s, 300.0, 1e-9);
+  EXPECT_NEAR(far->centre_rate_e_per_px_per_s, 300.0 * std::exp(-2.0), 1e-9);
+  EXPECT_NEAR(inside->centre_rate_e_per_px_per_s, 300.0, 1e-9);
+  EXPECT_NEAR(far->dir_y, -1.0, 1e-12);  // towards the body: up in the image
+  EXPECT_FALSE(stray_light_beyond_exclusion(cam, at(170), cam.sun_exclusion_rad, 300.0).has_value());
+  // Two ramps add.
+  cam.hot_pixel_count = 0;
+  const ImageFormer former(cam);
+  NoiseOptions opts = NoiseOptions::noise_free();
+  opts.dark_current = false;
+  const std::vector<StrayLight> two{*edge, *far};
+  const std::vector<float> f2 = former.expected_electrons({}, opts, two);
+  const std::vector<float> f0 = former.expected_electrons({}, opts);
+  const std::size_t centre = 511u * 1280u + 639u;
+  EXPECT_NEAR(f2[centre] - f0[centre],
+              (300.0 + 300.0 * std::exp(-2.0)) * cam.exposure_s * std::exp(0.5 / 300.0 * 1.0), 0.05);
+  EXPECT_GT(f2[640], f2[1023u * 1280u + 640u]);
 }
 
 TEST(ImagePng, SixteenBitRoundTripAndPreview) {

@@ -56,7 +56,9 @@ double predicted_snr(const CameraModel& c, double vmag) {
 }
 
 TEST(RendererSnr, TableForDocs) {
-  const CameraModel cam = CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst.yaml");
+  // The NST's photometry on the axis, without the real-hardware effects
+  // (nst.yaml's DN encoding and stray light would only rescale and offset).
+  const CameraModel cam = CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst_ideal.yaml");
   const ImageFormer former(cam);
   const int w = cam.width_px, h = cam.height_px;
 
@@ -190,6 +192,85 @@ TEST(RendererSnr, TableForDocs) {
   EXPECT_GT(target(false, 0, 0).snr, 2 * 5.0);
   EXPECT_GT(target(false, 1, 0).snr, 2 * 5.0);
   EXPECT_LT(target(true, 1, 2).snr, 0.8 * 5.0);
+}
+
+}  // namespace
+}  // namespace artms::imaging
+
+namespace artms::imaging {
+namespace {
+
+// A horizontal boresight (velocity direction) at 7000 km from the Earth's
+// centre: the limb is ~21 deg below it, 6 deg beyond a 15 deg exclusion.
+RenderRequest limb_request() {
+  RenderRequest req;
+  req.observer = "SV2";
+  req.t = astro::TimeTT{0};
+  req.observer_eci.r_m = dynamics::Vec3(7.0e6, 0.0, 0.0);
+  req.observer_eci.v_mps = dynamics::Vec3(0.0, 7.5e3, 0.0);
+  // Camera z = ECI +y (velocity), x = ECI +z, y = z cross x = ECI +x (up:
+  // image rows grow away from the Earth).
+  Eigen::Matrix3d R_cam_from_eci;
+  R_cam_from_eci.row(0) = Eigen::RowVector3d(0, 0, 1);
+  R_cam_from_eci.row(1) = Eigen::RowVector3d(1, 0, 0);
+  R_cam_from_eci.row(2) = Eigen::RowVector3d(0, 1, 0);
+  req.q_cam_from_eci = Eigen::Quaterniond(R_cam_from_eci);
+  return req;
+}
+
+double mean_dn(const std::vector<std::uint16_t>& px) {
+  double s = 0.0;
+  for (const auto v : px) s += v;
+  return s / static_cast<double>(px.size());
+}
+
+// Earth-limb stray light (camera file stray_light.earth_edge_e_per_px_per_s):
+// present when the limb below the boresight is sunlit, absent when it is in
+// night, brighter towards the Earth (image +y is away from the Earth here:
+// camera y = ECI +x = up), and absent with the key at 0. The renderer also
+// writes DN shifted by sensor.dn_shift_bits.
+TEST(RendererRealism, EarthLimbStrayLightFollowsTheSunAndPixelEncodingShifts) {
+  CameraModel cam = CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst_ideal.yaml");
+  cam.hot_pixel_count = 0;
+  cam.stray_earth_edge_e_per_px_per_s = 500.0;
+  RenderOptions opt;
+  opt.noise = NoiseOptions::noise_free();
+  opt.faint_stars = false;
+  const FrameRenderer lit(cam, StarCatalog{}, opt);
+  RenderRequest req = limb_request();
+  // Find a time when the Sun is near +x (limb below the boresight sunlit at
+  // noon) and one when it is near -x, from the ephemeris, over a year.
+  astro::TimeTT t_day{0}, t_night{0};
+  double best_day = -2.0, best_night = 2.0;
+  for (int d = 0; d < 365; ++d) {
+    const astro::TimeTT t{static_cast<std::int64_t>(d) * 86400LL * 1000000000LL};
+    const double c = dynamics::sun_position_eci_m(t).normalized().x();
+    if (c > best_day) best_day = c, t_day = t;
+    if (c < best_night) best_night = c, t_night = t;
+  }
+  req.t = t_day;
+  const RenderedFrame day = lit.render(req);
+  req.t = t_night;
+  const RenderedFrame night = lit.render(req);
+  cam.stray_earth_edge_e_per_px_per_s = 0.0;
+  const FrameRenderer off(cam, StarCatalog{}, opt);
+  req.t = t_day;
+  const RenderedFrame none = off.render(req);
+  ASSERT_FALSE(day.exclusion.excluded);
+  // 500 e-/px/s at the edge, 6 deg beyond with a 4 deg falloff, 0.2 s,
+  // 2.4 e-/DN: ~9 DN at the centre, times cos(zenith) ~0.9.
+  const double centre = static_cast<double>(day.pixels[512u * 1280u + 640u]) - none.pixels[512u * 1280u + 640u];
+  EXPECT_GT(centre, 5.0);
+  EXPECT_LT(centre, 12.0);
+  EXPECT_NEAR(mean_dn(night.pixels), mean_dn(none.pixels), 0.01);
+  // Towards the Earth (top rows, camera -y = ECI -x) brighter than away.
+  EXPECT_GT(day.pixels[5u * 1280u + 640u], day.pixels[1018u * 1280u + 640u] + 20u);
+
+  cam.dn_shift_bits = 4;
+  const FrameRenderer shifted(cam, StarCatalog{}, opt);
+  const RenderedFrame s = shifted.render(req);
+  ASSERT_EQ(s.pixels.size(), none.pixels.size());
+  for (std::size_t i = 0; i < s.pixels.size(); i += 997) EXPECT_EQ(s.pixels[i], none.pixels[i] << 4);
 }
 
 }  // namespace

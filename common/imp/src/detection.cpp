@@ -13,8 +13,35 @@ namespace artms::imp {
 // Intrinsics
 // ---------------------------------------------------------------------------
 
+namespace {
+// Brown's distortion of normalised coordinates (Intrinsics).
+Vec2 distort(const Vec2& n, const Intrinsics& K) {
+  const double x = n.x(), y = n.y(), r2 = x * x + y * y;
+  const double s = 1.0 + r2 * (K.k1 + K.k2 * r2);
+  return {x * s + 2.0 * K.p1 * x * y + K.p2 * (r2 + 2.0 * x * x),
+          y * s + K.p1 * (r2 + 2.0 * y * y) + 2.0 * K.p2 * x * y};
+}
+}  // namespace
+
 Vec3 Intrinsics::unproject(Vec2 px) const {
   const Vec2 xd((px.x() - cx) / fx, (px.y() - cy) / fy);
+  if (p1 != 0.0 || p2 != 0.0) {
+    // Newton in 2-D on distort(n) = xd from n = xd.
+    Vec2 n = xd;
+    for (int it = 0; it < 50; ++it) {
+      const double x = n.x(), y = n.y(), r2 = x * x + y * y;
+      const double s = 1.0 + r2 * (k1 + k2 * r2);
+      const double ds = 2.0 * (k1 + 2.0 * k2 * r2);
+      Eigen::Matrix2d J;
+      J << s + ds * x * x + 2.0 * p1 * y + 6.0 * p2 * x, ds * x * y + 2.0 * p1 * x + 2.0 * p2 * y,
+          ds * x * y + 2.0 * p1 * x + 2.0 * p2 * y, s + ds * y * y + 6.0 * p1 * y + 2.0 * p2 * x;
+      const Vec2 step = J.inverse() * (distort(n, *this) - xd);
+      if (!step.allFinite()) break;
+      n -= step;
+      if (step.norm() <= 1e-16 * std::max(1.0, n.norm())) break;
+    }
+    return Vec3(n.x(), n.y(), 1.0).normalized();
+  }
   const double rd = xd.norm();
   Vec2 xn = xd;
   if (rd > 0.0 && (k1 != 0.0 || k2 != 0.0)) {
@@ -36,11 +63,8 @@ Vec3 Intrinsics::unproject(Vec2 px) const {
 
 std::optional<Vec2> Intrinsics::project(Vec3 v_cam) const {
   if (!(v_cam.z() > 0.0)) return std::nullopt;
-  const double xn = v_cam.x() / v_cam.z();
-  const double yn = v_cam.y() / v_cam.z();
-  const double r2 = xn * xn + yn * yn;
-  const double scale = 1.0 + r2 * (k1 + k2 * r2);
-  const Vec2 px(cx + fx * xn * scale, cy + fy * yn * scale);
+  const Vec2 d = distort(Vec2(v_cam.x() / v_cam.z(), v_cam.y() / v_cam.z()), *this);
+  const Vec2 px(cx + fx * d.x(), cy + fy * d.y());
   if (!(px.x() >= -0.5 && px.x() <= width - 0.5 && px.y() >= -0.5 && px.y() <= height - 0.5)) {
     return std::nullopt;
   }
@@ -66,6 +90,7 @@ void Intrinsics::validate() const {
   }
   if (!std::isfinite(cx) || !std::isfinite(cy)) bad("cx and cy must be finite");
   if (!std::isfinite(k1) || !std::isfinite(k2)) bad("k1 and k2 must be finite");
+  if (!std::isfinite(p1) || !std::isfinite(p2)) bad("p1 and p2 must be finite");
 }
 
 // ---------------------------------------------------------------------------

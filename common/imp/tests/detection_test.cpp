@@ -32,7 +32,7 @@ struct TruthFrame {
 };
 TruthFrame render_catalog_frame(const imaging::ImageFormer& former, const Eigen::Quaterniond& q,
                                 std::uint64_t seed, const imaging::NoiseOptions& noise,
-                                const std::optional<imaging::StrayLight>& stray = std::nullopt) {
+                                std::span<const imaging::StrayLight> stray = {}) {
   TruthFrame f;
   const auto& cam = former.camera();
   f.stars = imaging::stars_in_frame(bsc5(), cam, q, frame_epoch(), 4.0 * cam.psf_sigma_px);
@@ -181,6 +181,8 @@ TEST(Intrinsics, MatchesTheRendererCameraModelWithDistortion) {
   auto cam = nst_camera();
   cam.k1 = -0.12;
   cam.k2 = 0.05;
+  cam.p1 = 8e-4;  // tangential (decentring): ~0.6 px at the corners
+  cam.p2 = -5e-4;
   const Intrinsics k = intrinsics_of(cam);
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> ux(-0.5, cam.width_px - 0.5),
@@ -341,7 +343,7 @@ TEST(Detection, FollowsABackgroundGradient) {
   double min_bg = 1e300, max_bg = 0.0;
   std::uint64_t seed = 7;
   for (const auto& q : attitudes(6, 13)) {
-    const auto f = render_catalog_frame(former, q, seed++, imaging::NoiseOptions{}, stray);
+    const auto f = render_catalog_frame(former, q, seed++, imaging::NoiseOptions{}, std::span(&stray, 1));
     min_bg = std::min<double>(min_bg, *std::min_element(f.pixels.begin(), f.pixels.begin() + 1000));
     max_bg = std::max<double>(max_bg, f.pixels[f.pixels.size() - 1]);
     const auto r = detect(f.pixels, cam.width_px, cam.height_px, DetectionOptions{});

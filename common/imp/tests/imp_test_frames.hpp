@@ -20,8 +20,11 @@
 
 namespace artms::imp::testing {
 
+// The NST without the real-hardware effects (nst_ideal.yaml): the unit
+// tests measure IMP against a known image model; the effects' cost is
+// measured end to end (docs/imaging.md, "Real-camera effects").
 inline imaging::CameraModel nst_camera() {
-  return imaging::CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst.yaml");
+  return imaging::CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst_ideal.yaml");
 }
 
 // BSC5 down to vmag_limit (the whole catalogue with 99).
@@ -43,6 +46,8 @@ inline Intrinsics intrinsics_of(const imaging::CameraModel& cam) {
   k.cy = cam.cy_px;
   k.k1 = cam.k1;
   k.k2 = cam.k2;
+  k.p1 = cam.p1;
+  k.p2 = cam.p2;
   return k;
 }
 

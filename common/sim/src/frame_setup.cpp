@@ -78,6 +78,8 @@ config::CameraCalibration calibration_from(const imaging::CameraModel& cam) {
   c.cy_px = cam.cy_px;
   c.k1 = cam.k1;
   c.k2 = cam.k2;
+  c.p1 = cam.p1;
+  c.p2 = cam.p2;
   c.psf_sigma_px = cam.psf_sigma_px;
   c.gain_e_per_dn = cam.gain_e_per_dn;
   c.saturation_dn = cam.max_dn();

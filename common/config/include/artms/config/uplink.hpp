@@ -22,6 +22,7 @@ struct CameraCalibration {
   int height_px = 0;
   double fx_px = 0.0, fy_px = 0.0, cx_px = 0.0, cy_px = 0.0;
   double k1 = 0.0, k2 = 0.0;
+  double p1 = 0.0, p2 = 0.0;  // tangential distortion (camera file optics.p1, optics.p2)
   double psf_sigma_px = 1.2;
   double gain_e_per_dn = 2.4;
   double saturation_dn = 4095.0;

@@ -145,6 +145,7 @@ class Observer {
   std::optional<imp::FrameProcessor> processor_;
   std::optional<imp::Samus> samus_;
   imp::AidedDetectionOptions aided_options_;
+  std::vector<std::uint16_t> decoded_;  // frame pixels in DN (camera calibration dn_shift_bits undone)
   std::map<int, imp::ForcedPhotometry> forced_;  // per target index: forced photometry at its prediction
   std::optional<Navigator> navigator_;
   int n_scan_;

@@ -6,8 +6,11 @@
 // the sensor area spans [-0.5, width - 0.5] x [-0.5, height - 0.5]. Camera
 // frame: z = boresight, x along +column, y along +row. Pinhole:
 //   x_px = cx + fx * xd,  y_px = cy + fy * yd,
-// where (xd, yd) are the distorted normalised coordinates of (X/Z, Y/Z)
-// (Brown's radial model, xd = xn (1 + k1 r^2 + k2 r^4), r^2 = xn^2 + yn^2).
+// where (xd, yd) are the distorted normalised coordinates of (xn, yn) =
+// (X/Z, Y/Z) by Brown's model (Brown 1966; OpenCV's convention), radial and
+// tangential (decentring), r^2 = xn^2 + yn^2, s = 1 + k1 r^2 + k2 r^4:
+//   xd = xn s + 2 p1 xn yn + p2 (r^2 + 2 xn^2)
+//   yd = yn s + p1 (r^2 + 2 yn^2) + 2 p2 xn yn.
 #pragma once
 
 #include <Eigen/Core>
@@ -24,7 +27,11 @@ using Vec2 = Eigen::Vector2d;
 using Vec3 = Eigen::Vector3d;
 
 // Defaults are the NST-like values shipped in config/cameras/nst.yaml
-// (geometry: StarFOX paper Table 1; the rest: see the comment on each field).
+// (geometry: StarFOX paper Table 1; the rest: see the comment on each field),
+// except the effects of real optics and sensors (vignetting, off-axis and
+// chromatic PSF, background gradient, blooming, stray light outside the
+// exclusion cones), which are off here and in a camera file that does not
+// name them, and on in nst.yaml (config/cameras/nst_ideal.yaml: all off).
 struct CameraModel {
   std::string name = "nst";
 
@@ -47,9 +54,12 @@ struct CameraModel {
   // Principal point: the geometric centre of the pixel grid, (N - 1) / 2.
   double cx_px = (1280 - 1) / 2.0;
   double cy_px = (1024 - 1) / 2.0;
-  // Brown radial distortion on normalised coordinates (0 = ideal pinhole).
+  // Brown radial and tangential distortion on normalised coordinates (0 =
+  // ideal pinhole).
   double k1 = 0.0;
   double k2 = 0.0;
+  double p1 = 0.0;
+  double p2 = 0.0;
   // Field effects of real optics (0 = off, the NST file's default): the
   // fraction of light lost at the sensor corner, growing as (r / r_corner)^2
   // from the principal point (vignetting; sources and sky background alike);
@@ -60,6 +70,27 @@ struct CameraModel {
   double vignetting_corner_loss = 0.0;
   double psf_growth_corner = 0.0;
   double background_gradient = 0.0;
+  // Chromatic PSF: sigma times 1 + psf_colour_slope_per_mag (B-V - 0.65)
+  // (red stars wider than the solar-coloured targets: the longitudinal
+  // chromatic aberration of a refractive lens focused for ~550 nm); 0: off.
+  double psf_colour_slope_per_mag = 0.0;
+  // Blooming: the charge a pixel collects above the full well spills into
+  // the pixels above and below it in its column, half each way, filling each
+  // to the full well in turn (a sensor without an anti-blooming drain);
+  // false: the excess is lost.
+  bool blooming = false;
+  // Stray light outside the exclusion cones (Sun, Moon, Earth limb): the
+  // baffle's point-source transmittance falls roughly exponentially with
+  // the body's angle from the boresight, so the background at the sensor
+  // centre gains edge_rate * exp(-(angle - exclusion) / stray_falloff_rad),
+  // ramping up across the sensor towards the body (StrayLight in image.hpp).
+  // The Moon's rate is for a full Moon (times its illuminated fraction), the
+  // Earth's for a limb under a zenith Sun (times the cosine of the Sun's
+  // zenith angle at the limb point nearest the boresight). 0: off.
+  double stray_sun_edge_e_per_px_per_s = 0.0;
+  double stray_moon_edge_e_per_px_per_s = 0.0;
+  double stray_earth_edge_e_per_px_per_s = 0.0;
+  double stray_falloff_rad = 4.0 * astro::kDegToRad;
 
   // --- Optics and photometry -------------------------------------------------
   // Exposure (integration) time. The NST updates at up to 5 Hz, so 0.2 s is
@@ -135,8 +166,9 @@ struct CameraModel {
 
   // Normalised (undistorted) image coordinates -> pixel, with distortion.
   [[nodiscard]] Vec2 pixel_from_normalized(const Vec2& xn) const;
-  // Pixel -> undistorted normalised coordinates (inverts the radial
-  // distortion by Newton iteration on the radius; exact to ~1e-15).
+  // Pixel -> undistorted normalised coordinates (inverts the distortion by
+  // Newton iteration: on the radius for a radial model, in 2-D with
+  // tangential terms; exact to ~1e-15).
   [[nodiscard]] Vec2 normalized_from_pixel(const Vec2& px) const;
 
   // Pixel position of a direction given in camera components (any length).

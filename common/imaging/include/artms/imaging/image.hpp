@@ -18,6 +18,8 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <string>
@@ -29,12 +31,16 @@
 
 namespace artms::imaging {
 
+// B-V colour index of the Sun (and of sunlight reflected by a grey target).
+inline constexpr double kSolarBMinusV = 0.65;
+
 // A point source on the focal plane: position in pixels, and the
 // photo-electrons it deposits over the whole exposure (all pixels).
 struct PointSource {
   double x_px = 0.0;
   double y_px = 0.0;
   double electrons = 0.0;
+  double b_minus_v = kSolarBMinusV;  // colour index (CameraModel::psf_colour_slope_per_mag)
 };
 
 // A pixel with an anomalously high dark current.
@@ -69,6 +75,23 @@ std::optional<StrayLight> washout(const CameraModel& camera, const Vec3& body_di
 inline std::optional<StrayLight> sun_washout(const CameraModel& camera, const Vec3& sun_dir_cam) {
   return washout(camera, sun_dir_cam, camera.sun_exclusion_rad);
 }
+
+// Stray light from a body outside its exclusion cone (CameraModel::stray_*):
+// centre rate edge_rate_e_per_px_per_s * exp(-(angle - exclusion) /
+// camera.stray_falloff_rad), rising towards the body across the sensor with
+// the washout ramp's 300 px e-folding length (so the far edge gets about a
+// tenth of the near one); inside the cone the same as at its edge (the
+// washout adds to it). nullopt when the rate is 0 or the body is behind the
+// camera plane by more than 90 deg plus 6 e-folds.
+std::optional<StrayLight> stray_light_beyond_exclusion(const CameraModel& camera, const Vec3& body_dir_cam,
+                                                       double exclusion_half_angle_rad,
+                                                       double edge_rate_e_per_px_per_s);
+
+// Charge above the full well spilt along columns (CameraModel::blooming):
+// each pixel's excess goes half up, half down its column, filling pixels to
+// the full well in turn; what runs off the sensor is lost. In place, on
+// electrons.
+void bloom_columns(std::span<float> image_e, int width, int height, double full_well_e);
 
 // Which terms of the image model are on. Each noise term switches alone.
 struct NoiseOptions {
@@ -114,24 +137,29 @@ class ImageFormer {
   // Expected electrons per pixel before noise and clipping (row-major).
   [[nodiscard]] std::vector<float> expected_electrons(
       std::span<const PointSource> sources, const NoiseOptions& options = {},
-      const std::optional<StrayLight>& stray = std::nullopt) const;
+      std::span<const StrayLight> stray = {}) const;
 
   // The frame as the camera reads it out: integer DN in [0, max_dn]
   // (in [0, 65535] when options.saturation is off), rounded to nearest.
   [[nodiscard]] std::vector<std::uint16_t> render(
       std::span<const PointSource> sources, std::uint64_t seed, const NoiseOptions& options = {},
-      const std::optional<StrayLight>& stray = std::nullopt) const;
+      std::span<const StrayLight> stray = {}) const;
 
   // The same in DN as float, without quantisation (clipped to [0, max_dn]
   // when options.saturation is on). With NoiseOptions::noise_free() this is
   // the expected signal: electrons / gain + bias.
   [[nodiscard]] std::vector<float> render_float(
       std::span<const PointSource> sources, std::uint64_t seed, const NoiseOptions& options = {},
-      const std::optional<StrayLight>& stray = std::nullopt) const;
+      std::span<const StrayLight> stray = {}) const;
 
  private:
   CameraModel camera_;
   std::vector<HotPixel> hot_pixels_;
+  // Sampling tables of the faint pixel levels (image.cpp), built once per
+  // set of noise options and shared by every frame and copy.
+  struct LevelTables;
+  mutable std::shared_ptr<const LevelTables> levels_;
+  std::shared_ptr<std::mutex> levels_mutex_ = std::make_shared<std::mutex>();
 };
 
 // A catalog star imaged by the camera.

@@ -16,6 +16,7 @@ struct Star {
   double ra_rad = 0.0;  // J2000 equator and equinox, epoch J2000.0
   double dec_rad = 0.0;
   double vmag = 0.0;
+  double b_minus_v = 0.65;  // Johnson B-V (BSC5 bytes 110-114; solar when blank)
   double pm_ra_cosdec_radpyr = 0.0;  // mu_alpha * cos(dec), rad per Julian year
   double pm_dec_radpyr = 0.0;        // rad per Julian year
 

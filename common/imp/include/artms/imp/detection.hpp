@@ -110,8 +110,10 @@ using Vec3 = Eigen::Vector3d;
 // model and pixel convention as the renderer's imaging::CameraModel (which
 // IMP must not include):
 //   x_px = cx + fx * xd,  y_px = cy + fy * yd,
-//   (xd, yd) = (xn, yn) (1 + k1 r^2 + k2 r^4),  r^2 = xn^2 + yn^2,
-//   (xn, yn) = (X / Z, Y / Z).
+//   xd = xn s + 2 p1 xn yn + p2 (r^2 + 2 xn^2),
+//   yd = yn s + p1 (r^2 + 2 yn^2) + 2 p2 xn yn,
+//   s = 1 + k1 r^2 + k2 r^4,  r^2 = xn^2 + yn^2,  (xn, yn) = (X / Z, Y / Z)
+// (Brown 1966, radial and tangential; OpenCV's convention).
 struct Intrinsics {
   int width = 0;
   int height = 0;
@@ -121,9 +123,12 @@ struct Intrinsics {
   double cy = 0.0;
   double k1 = 0.0;
   double k2 = 0.0;
+  double p1 = 0.0;
+  double p2 = 0.0;
 
   // Unit line of sight in camera components for a pixel position (inverts
-  // the distortion by Newton iteration on the radius).
+  // the distortion by Newton iteration: on the radius for a radial model,
+  // in 2-D with tangential terms).
   [[nodiscard]] Vec3 unproject(Vec2 px) const;
   // Pixel position of a direction in camera components (any length);
   // nullopt behind the camera (Z <= 0) or outside the sensor area
