@@ -11,6 +11,7 @@
 #include "artms/astro/elements.hpp"
 #include "artms/fsw/observer.hpp"
 #include "artms/imaging/renderer.hpp"
+#include "artms/render/camera_calibration.hpp"
 #include "sod_scenario.hpp"
 
 namespace artms::fsw {
@@ -288,17 +289,8 @@ TEST(Observer, ImpUndoesTheUplinkedPixelEncoding) {
 
   const auto run = [&](int shift_in_frame, int shift_uplinked) {
     ObserverSetup s = setup();
-    auto& c = s.uplink.camera_calibration;
-    c.width_px = cam.width_px;
-    c.height_px = cam.height_px;
-    c.fx_px = cam.fx_px;
-    c.fy_px = cam.fy_px;
-    c.cx_px = cam.cx_px;
-    c.cy_px = cam.cy_px;
-    c.psf_sigma_px = cam.psf_sigma_px;
-    c.gain_e_per_dn = cam.gain_e_per_dn;
-    c.saturation_dn = cam.max_dn();
-    c.dn_shift_bits = shift_uplinked;
+    s.uplink.camera_calibration = render::calibration_from(cam);
+    s.uplink.camera_calibration.dn_shift_bits = shift_uplinked;
     s.uplink.star_catalog_file = "stars.csv";  // the uplinked file's name; its stars as read:
     for (const auto& st : bsc.stars()) s.star_catalog.push_back({st.catalog_id, st.unit_eci_at(kT0)});
     Observer o(s, "observer-SV4");
