@@ -8,7 +8,9 @@
 // attitude.csv, measurements.csv (every candidate; track_id -1 when no track
 // took it), stars.csv (each identified star: centroid, catalog id,
 // residual) and tracks.csv. Corrupt or unreadable frames are reported with
-// their reason and skipped. Exit status 0 when at least one frame is solved,
+// their reason and skipped. When the camera file's focal length fails and
+// the search fits one per frame, every frame is solved again with the one
+// common to the solved frames (--per-frame-focal keeps theirs). Exit status 0 when at least one frame is solved,
 // 3 when none is, 2 on an error.
 #include <CLI/CLI.hpp>
 
@@ -87,6 +89,11 @@ int run(int argc, char** argv) {
                  "fails (refined, kept for the next frames, written as focal_px); 0: off")
       ->check(CLI::Range(0.0, 20.0))
       ->capture_default_str();
+  bool per_frame_focal = false;
+  app.add_flag("--per-frame-focal", per_frame_focal,
+               "when the focal-length search was needed, keep each frame's own fitted focal length (a zoom lens,\n"
+               "a camera whose focal length drifts) instead of re-solving every frame with the one common to the\n"
+               "solved frames");
   std::string orbit_path;
   app.add_option("--observer-orbit", orbit_path,
                  "CSV with t_tt_ns,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps: a coarse observer orbit for SAMUS\n"
@@ -197,141 +204,169 @@ int run(int argc, char** argv) {
     samus_opt.model_floor_rad = floor_arcsec * astro::kArcsecToRad;
     std::optional<OrbitTable> orbit;
     if (!orbit_path.empty()) orbit = OrbitTable::load(orbit_path);
-    std::optional<imp::Samus> samus;
-    if (orbit) samus.emplace(samus_opt);
     imp::FrameProcessorOptions fpo = fsw::frame_processor_options(calib, config::ImpTuning{});
     fpo.focal_search_fraction = focal_search_percent / 100.0;
     fpo.learn_psf = learn_psf;
-    imp::FrameProcessor processor(K, catalog, fpo);
+    // One camera, one focal length: when the camera file's failed and the
+    // search fitted a focal length per frame, every frame is solved again
+    // with the one common to the solved frames (their scales averaged with
+    // the matched stars as weights), so that a frame with few stars does not
+    // carry its own scale error into its attitude.
+    imp::Intrinsics K_use = K;
+    std::vector<std::pair<double, int>> frame_scales;  // (focal_scale, stars_matched) of the solved frames
+    for (int pass = 0; pass < 2; ++pass) {
+      if (pass == 1) {
+        double sw = 0.0, w = 0.0, lo = 1e9, hi = 0.0;
+        for (const auto& [s, n] : frame_scales) {
+          sw += s * n;
+          w += n;
+          lo = std::min(lo, s);
+          hi = std::max(hi, s);
+        }
+        const bool searched = std::any_of(frame_scales.begin(), frame_scales.end(),
+                                          [](const auto& fsn) { return fsn.first != 1.0; });
+        if (per_frame_focal || frame_scales.size() < 2 || !searched) break;
+        K_use.fx = K.fx * sw / w;
+        K_use.fy = K.fy * sw / w;
+        std::fprintf(stderr,
+                     "artms-imp: focal length common to the %zu solved frames %.2f px (theirs %.2f to %.2f px; the "
+                     "camera file's %.2f px); every frame solved again with it (--per-frame-focal: keep theirs)\n",
+                     frame_scales.size(), K_use.fx, K.fx * lo, K.fx * hi, K.fx);
+      }
+      std::optional<imp::Samus> samus;
+      if (orbit) samus.emplace(samus_opt);
+      imp::FrameProcessor processor(K_use, catalog, fpo);
 
-    fs::create_directories(out);
-    std::ofstream att(fs::path(out) / "attitude.csv"), meas(fs::path(out) / "measurements.csv"),
-        tracks(fs::path(out) / "tracks.csv");
-    std::ofstream star_rows(fs::path(out) / "stars.csv");
-    att << "frame,file,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec,focal_px,psf_sigma_px,why\n";
-    star_rows << "frame,file,x_px,y_px,catalog_id,residual_arcsec,saturated,sigma_px\n";
-    meas << "frame,t_tt_ns,track_id,x_px,y_px,ux_eci,uy_eci,uz_eci,az_rad,el_rad,sigma_rad\n";
-    tracks << "track_id,first_frame,last_frame,measurements,segments,fit_rms_arcsec\n";
-    // Candidates per frame; the track that took each (SAMUS decides later).
-    struct Row {
-      int frame;
-      std::int64_t t_ns;
-      imp::Candidate c;
-      int track = -1;
-    };
-    std::vector<Row> rows;
-    std::map<std::pair<int, int>, std::size_t> row_of;  // (frame, candidate) -> rows index
-    auto take = [&](const std::vector<imp::TrackedMeasurement>& released) {
-      for (const auto& m : released) {
-        const auto it = row_of.find({static_cast<int>(m.frame), m.candidate});
-        if (it != row_of.end()) rows[it->second].track = m.track_id;
-      }
-    };
-    int solved = 0, corrupt = 0, hot = 0, uncatalogued = 0, no_orbit = 0;
-    char line[512];
-    for (std::size_t fi = 0; fi < frames.size(); ++fi) {
-      const auto& path = frames[fi];
-      const int k = numbered ? std::stoi(std::regex_replace(path.filename().string(), name, "$1"))
-                             : static_cast<int>(fi);
-      const std::string file = csv_text(path.filename().string());
-      std::int64_t t_ns = t_cli ? t_cli->ns_since_j2000 : 0;
-      imaging::Image16 img;
-      try {
-        if (is_fits(path)) {
-          imp_tool::FitsFrame fr = imp_tool::read_fits(path.string(), fits_rows == "bottom-first");
-          img = std::move(fr.image);
-          if (fr.t_mid) t_ns = fr.t_mid->ns_since_j2000;
-        } else {
-          img = imaging::read_png16(path.string());
+      fs::create_directories(out);
+      std::ofstream att(fs::path(out) / "attitude.csv"), meas(fs::path(out) / "measurements.csv"),
+          tracks(fs::path(out) / "tracks.csv");
+      std::ofstream star_rows(fs::path(out) / "stars.csv");
+      att << "frame,file,t_tt_ns,status,qw,qx,qy,qz,stars_matched,residual_arcsec,attitude_sigma_arcsec,focal_px,psf_sigma_px,why\n";
+      star_rows << "frame,file,x_px,y_px,catalog_id,residual_arcsec,saturated,sigma_px\n";
+      meas << "frame,t_tt_ns,track_id,x_px,y_px,ux_eci,uy_eci,uz_eci,az_rad,el_rad,sigma_rad\n";
+      tracks << "track_id,first_frame,last_frame,measurements,segments,fit_rms_arcsec\n";
+      // Candidates per frame; the track that took each (SAMUS decides later).
+      struct Row {
+        int frame;
+        std::int64_t t_ns;
+        imp::Candidate c;
+        int track = -1;
+      };
+      std::vector<Row> rows;
+      std::map<std::pair<int, int>, std::size_t> row_of;  // (frame, candidate) -> rows index
+      auto take = [&](const std::vector<imp::TrackedMeasurement>& released) {
+        for (const auto& m : released) {
+          const auto it = row_of.find({static_cast<int>(m.frame), m.candidate});
+          if (it != row_of.end()) rows[it->second].track = m.track_id;
         }
-        if (const auto ts = sidecar_time(path)) t_ns = *ts;
-        if (shift > 0) {
-          for (auto& v : img.pixels) v = static_cast<std::uint16_t>(v >> shift);
-        }
-        if (img.width != K.width || img.height != K.height) {
-          throw std::runtime_error("size " + std::to_string(img.width) + "x" + std::to_string(img.height) +
-                                   " does not match the camera");
-        }
-      } catch (const std::exception& e) {
-        ++corrupt;
-        std::fprintf(stderr, "artms-imp: skipping %s: %s\n", path.c_str(), e.what());
-        std::snprintf(line, sizeof line, "%d,%s,%lld,corrupt,,,,,0,,,,,", k, file.c_str(), static_cast<long long>(t_ns));
-        att << line << csv_text(e.what()) << "\n";
-        continue;
-      }
-      const imp::FrameSummary fr = processor.process(img.pixels, astro::TimeTT{t_ns});
-      hot += fr.hot_pixels_removed;
-      uncatalogued += fr.uncatalogued_stars_removed;
-      if (!fr.attitude_usable) {
-        std::snprintf(line, sizeof line, "%d,%s,%lld,%s,,,,,%d,,,,%.3f,", k, file.c_str(), static_cast<long long>(t_ns),
-                      fr.status.c_str(), fr.stars_matched, fr.psf_sigma_px);
-        att << line << csv_text(fr.why) << "\n";
-        std::fprintf(stderr, "artms-imp: %s: %s (%s)\n", path.filename().c_str(), fr.status.c_str(), fr.why.c_str());
-        continue;
-      }
-      ++solved;
-      const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
-      std::snprintf(line, sizeof line, "%d,%s,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f,%.3f,%.3f,%.3f,\n", k,
-                    file.c_str(), static_cast<long long>(t_ns), q[0], q[1], q[2], q[3], fr.stars_matched,
-                    fr.residual_rms_rad / astro::kArcsecToRad, fr.attitude_sigma_rad / astro::kArcsecToRad,
-                    K.fx * fr.focal_scale, fr.psf_sigma_px);
-      att << line;
-      for (const auto& st : fr.stars) {
-        std::snprintf(line, sizeof line, "%d,%s,%.4f,%.4f,%d,%.3f,%d,%.4f\n", k, file.c_str(), st.x_px, st.y_px,
-                      st.catalog_id, st.residual_rad / astro::kArcsecToRad, st.saturated ? 1 : 0, st.sigma_px);
-        star_rows << line;
-      }
-      for (std::size_t i = 0; i < fr.candidates.size(); ++i) {
-        row_of[{k, static_cast<int>(i)}] = rows.size();
-        rows.push_back({k, t_ns, fr.candidates[i], -1});
-      }
-      if (samus) {
-        const auto x = orbit->at(t_ns);
-        if (!x) {
-          ++no_orbit;
+      };
+      int solved = 0, corrupt = 0, hot = 0, uncatalogued = 0, no_orbit = 0;
+      char line[512];
+      for (std::size_t fi = 0; fi < frames.size(); ++fi) {
+        const auto& path = frames[fi];
+        const int k = numbered ? std::stoi(std::regex_replace(path.filename().string(), name, "$1"))
+                               : static_cast<int>(fi);
+        const std::string file = csv_text(path.filename().string());
+        std::int64_t t_ns = t_cli ? t_cli->ns_since_j2000 : 0;
+        imaging::Image16 img;
+        try {
+          if (is_fits(path)) {
+            imp_tool::FitsFrame fr = imp_tool::read_fits(path.string(), fits_rows == "bottom-first");
+            img = std::move(fr.image);
+            if (fr.t_mid) t_ns = fr.t_mid->ns_since_j2000;
+          } else {
+            img = imaging::read_png16(path.string());
+          }
+          if (const auto ts = sidecar_time(path)) t_ns = *ts;
+          if (shift > 0) {
+            for (auto& v : img.pixels) v = static_cast<std::uint16_t>(v >> shift);
+          }
+          if (img.width != K.width || img.height != K.height) {
+            throw std::runtime_error("size " + std::to_string(img.width) + "x" + std::to_string(img.height) +
+                                     " does not match the camera");
+          }
+        } catch (const std::exception& e) {
+          ++corrupt;
+          std::fprintf(stderr, "artms-imp: skipping %s: %s\n", path.c_str(), e.what());
+          std::snprintf(line, sizeof line, "%d,%s,%lld,corrupt,,,,,0,,,,,", k, file.c_str(), static_cast<long long>(t_ns));
+          att << line << csv_text(e.what()) << "\n";
           continue;
         }
-        imp::TrackerInput in;
-        in.frame = k;
-        in.t = astro::TimeTT{t_ns};
-        in.observer_eci = *x;
-        in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
-        in.candidates = fr.candidates;
-        take(samus->process(in).released);
+        const imp::FrameSummary fr = processor.process(img.pixels, astro::TimeTT{t_ns});
+        hot += fr.hot_pixels_removed;
+        uncatalogued += fr.uncatalogued_stars_removed;
+        if (!fr.attitude_usable) {
+          std::snprintf(line, sizeof line, "%d,%s,%lld,%s,,,,,%d,,,,%.3f,", k, file.c_str(), static_cast<long long>(t_ns),
+                        fr.status.c_str(), fr.stars_matched, fr.psf_sigma_px);
+          att << line << csv_text(fr.why) << "\n";
+          std::fprintf(stderr, "artms-imp: %s: %s (%s)\n", path.filename().c_str(), fr.status.c_str(), fr.why.c_str());
+          continue;
+        }
+        ++solved;
+        const auto q = astro::wxyz_from_quaternion(fr.q_cam_from_eci);
+        std::snprintf(line, sizeof line, "%d,%s,%lld,ok,%.12f,%.12f,%.12f,%.12f,%d,%.3f,%.3f,%.3f,%.3f,\n", k,
+                      file.c_str(), static_cast<long long>(t_ns), q[0], q[1], q[2], q[3], fr.stars_matched,
+                      fr.residual_rms_rad / astro::kArcsecToRad, fr.attitude_sigma_rad / astro::kArcsecToRad,
+                      K_use.fx * fr.focal_scale, fr.psf_sigma_px);
+        att << line;
+        if (pass == 0) frame_scales.emplace_back(K_use.fx * fr.focal_scale / K.fx, fr.stars_matched);
+        for (const auto& st : fr.stars) {
+          std::snprintf(line, sizeof line, "%d,%s,%.4f,%.4f,%d,%.3f,%d,%.4f\n", k, file.c_str(), st.x_px, st.y_px,
+                        st.catalog_id, st.residual_rad / astro::kArcsecToRad, st.saturated ? 1 : 0, st.sigma_px);
+          star_rows << line;
+        }
+        for (std::size_t i = 0; i < fr.candidates.size(); ++i) {
+          row_of[{k, static_cast<int>(i)}] = rows.size();
+          rows.push_back({k, t_ns, fr.candidates[i], -1});
+        }
+        if (samus) {
+          const auto x = orbit->at(t_ns);
+          if (!x) {
+            ++no_orbit;
+            continue;
+          }
+          imp::TrackerInput in;
+          in.frame = k;
+          in.t = astro::TimeTT{t_ns};
+          in.observer_eci = *x;
+          in.boresight_eci = fr.q_cam_from_eci.toRotationMatrix().transpose().col(2);
+          in.candidates = fr.candidates;
+          take(samus->process(in).released);
+        }
+        if (frames.size() >= 100 && (fi + 1) % (frames.size() / 10) == 0) {
+          std::fprintf(stderr, "artms-imp: %zu / %zu frames\n", fi + 1, frames.size());
+        }
       }
-      if (frames.size() >= 100 && (fi + 1) % (frames.size() / 10) == 0) {
-        std::fprintf(stderr, "artms-imp: %zu / %zu frames\n", fi + 1, frames.size());
+      int tracked = 0;
+      if (samus) {
+        take(samus->flush());
+        for (const auto& t : samus->tracks()) {
+          std::snprintf(line, sizeof line, "%d,%lld,%lld,%d,%d,%.2f\n", t.track_id, static_cast<long long>(t.first_frame),
+                        static_cast<long long>(t.last_frame), t.measurements, t.segments,
+                        t.fit_rms_rad / astro::kArcsecToRad);
+          tracks << line;
+        }
       }
-    }
-    int tracked = 0;
-    if (samus) {
-      take(samus->flush());
-      for (const auto& t : samus->tracks()) {
-        std::snprintf(line, sizeof line, "%d,%lld,%lld,%d,%d,%.2f\n", t.track_id, static_cast<long long>(t.first_frame),
-                      static_cast<long long>(t.last_frame), t.measurements, t.segments,
-                      t.fit_rms_rad / astro::kArcsecToRad);
-        tracks << line;
+      for (const auto& r : rows) {
+        const Eigen::Vector3d& u = r.c.u_eci;
+        const astro::Bearing b = astro::bearing_from_los(r.c.u_cam);
+        std::snprintf(line, sizeof line, "%d,%lld,%d,%.4f,%.4f,%.12f,%.12f,%.12f,%.9f,%.9f,%.3e\n", r.frame,
+                      static_cast<long long>(r.t_ns), r.track, r.c.x_px, r.c.y_px, u.x(), u.y(), u.z(), b.az_rad,
+                      b.el_rad, r.c.sigma_rad);
+        meas << line;
+        if (r.track >= 0) ++tracked;
       }
-    }
-    for (const auto& r : rows) {
-      const Eigen::Vector3d& u = r.c.u_eci;
-      const astro::Bearing b = astro::bearing_from_los(r.c.u_cam);
-      std::snprintf(line, sizeof line, "%d,%lld,%d,%.4f,%.4f,%.12f,%.12f,%.12f,%.9f,%.9f,%.3e\n", r.frame,
-                    static_cast<long long>(r.t_ns), r.track, r.c.x_px, r.c.y_px, u.x(), u.y(), u.z(), b.az_rad,
-                    b.el_rad, r.c.sigma_rad);
-      meas << line;
-      if (r.track >= 0) ++tracked;
-    }
-    std::fprintf(stderr,
-                 "artms-imp: %zu frames, attitude solved on %d, %d corrupt or unreadable; removed %d hot pixels and %d "
-                 "uncatalogued stars; %zu candidates, %d in tracks (%s)\n",
-                 frames.size(), solved, corrupt, hot, uncatalogued, rows.size(), tracked,
-                 samus ? (std::to_string(samus->tracks().size()) + " tracks").c_str()
-                       : "no --observer-orbit: SAMUS tracking off");
-    if (no_orbit > 0) std::fprintf(stderr, "artms-imp: %d frames outside the observer orbit file: not tracked\n", no_orbit);
-    if (solved == 0) {
-      std::fprintf(stderr, "artms-imp: no frame solved (attitude.csv gives each frame's reason)\n");
-      return 3;
+      std::fprintf(stderr,
+                   "artms-imp: %zu frames, attitude solved on %d, %d corrupt or unreadable; removed %d hot pixels and %d "
+                   "uncatalogued stars; %zu candidates, %d in tracks (%s)\n",
+                   frames.size(), solved, corrupt, hot, uncatalogued, rows.size(), tracked,
+                   samus ? (std::to_string(samus->tracks().size()) + " tracks").c_str()
+                         : "no --observer-orbit: SAMUS tracking off");
+      if (no_orbit > 0) std::fprintf(stderr, "artms-imp: %d frames outside the observer orbit file: not tracked\n", no_orbit);
+      if (solved == 0) {
+        std::fprintf(stderr, "artms-imp: no frame solved (attitude.csv gives each frame's reason)\n");
+        return 3;
+      }
     }
   } catch (const std::exception& e) {
     std::cerr << "artms-imp: error: " << e.what() << "\n";
