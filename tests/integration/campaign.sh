@@ -58,10 +58,37 @@ for k, t in c["targets"].items():
     assert n["updates"] > 0 and 0.0 <= n["frac_inside_band"] <= 1.0 and n["mean_nis"] > 0, (k, n)
     with_nis += 1
 assert with_nis >= 1, {k: t.get("nis") for k, t in c["targets"].items()}
+for k, t in c["targets"].items():
+    cm = t.get("common_to_every_seed")
+    if cm is None:
+        continue
+    assert cm["roe"] == ["da", "dlambda", "dex", "dey", "dix", "diy"] and len(cm["ratio_to_independent"]) == 6, (k, cm)
+    assert all(x >= 0 for x in cm["rms_seed_mean_z"] + cm["rms_z"]), (k, cm)
 for s in c["seeds"]:
     r = json.load(open(f"{d}/seed_{s}/campaign_run.json"))
     assert r["seed"] == s and r["span"] == {"orbits": 0.5} and len(r["scenario_sha256"]) == 64, r
 print("campaign summary:", ", ".join(f"{k} {t['runs']} runs" for k, t in c["targets"].items()))
+PY
+# The common-error diagnostic on synthetic runs: independent errors give a
+# ratio near 1, an error shared by every run a ratio near sqrt(runs).
+"$PY" - "$CAMPAIGN" <<'PY'
+import math, os, sys
+import numpy as np
+sys.path.insert(0, os.path.dirname(sys.argv[1]))
+import campaign
+rng = np.random.default_rng(5)
+R, T = 16, 4000
+times = list(range(T))
+sel = np.ones(T, bool)
+indep = [{t: list(rng.standard_normal(6)) for t in times} for _ in range(R)]
+shared = rng.standard_normal((T, 6))
+common = [{t: list(0.9 * shared[t] + 0.1 * rng.standard_normal(6)) for t in times} for _ in range(R)]
+a = campaign.common_mode_entry(indep, times, sel)["ratio_to_independent"]
+b = campaign.common_mode_entry(common, times, sel)["ratio_to_independent"]
+assert all(0.9 < x < 1.1 for x in a), a
+assert all(0.9 * math.sqrt(R) < x < 1.05 * math.sqrt(R) for x in b), b
+print(f"common-error diagnostic: independent runs x {min(a):.2f}-{max(a):.2f}, shared error x {min(b):.2f}-{max(b):.2f} "
+      f"(sqrt({R}) = {math.sqrt(R):.2f})")
 PY
 for s in 1 2 3; do cp "$WORK/local/seed_$s/summary.json" "$WORK/summary_$s.json"; done
 

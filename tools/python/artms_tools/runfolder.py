@@ -140,6 +140,25 @@ def target_nees(run_dir):
     return out
 
 
+ROE_NAMES = ("da", "dlambda", "dex", "dey", "dix", "diy")
+
+
+def target_normalised_errors(run_dir):
+    """Each ROE's error over its 1-sigma in eval/targets.csv: {(observer, target): {t_tt_ns: [6 floats]}}
+    (NaN where the 1-sigma is not positive). A later row of the same pair and time replaces an earlier one."""
+    t = read_csv(os.path.join(run_dir, "eval", "targets.csv"),
+                 required=("observer", "target", "t_tt_ns") + tuple(f"err_a_{n}_m" for n in ROE_NAMES)
+                 + tuple(f"sigma_a_{n}_m" for n in ROE_NAMES))
+    out = {}
+    for r in t:
+        z = []
+        for n in ROE_NAMES:
+            sig = r.float(f"sigma_a_{n}_m")
+            z.append(r.float(f"err_a_{n}_m") / sig if sig > 0 else math.nan)
+        out.setdefault((r["observer"], r["target"]), {})[r.int("t_tt_ns")] = z
+    return out
+
+
 def observer_nees(run_dir):
     """Absolute position NEES (3 dof) of eval/observers.csv: {observer: {t_tt_ns: nees}}; empty when the run
     folder predates the nees_pos column."""
