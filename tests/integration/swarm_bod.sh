@@ -11,7 +11,11 @@
 #  3. starling_pse_bod_two.yaml 4 h with the flight-like photometry: SV3 at
 #     ~155 km is too faint in every frame; SV4's navigator says at each BOD
 #     attempt that SV3 still waits for BOD, and summary.json gives SV3 an
-#     entry "never estimated" with the frames' reasons (nothing silent).
+#     entry "never estimated" with the frames' reasons (nothing silent);
+#  4. starling_bod_assist.yaml (issue 16, acceptance 3), 19 h seed 7: SV4 in
+#     mode 1 with the 3.5-day a-priori of T20 (~20 km, bound only after BOD)
+#     and T150: both converge (a*dlambda within 1 % of range to the end)
+#     within 6 orbits; T150 is never bound to T20's track.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -23,6 +27,8 @@ sed 's/profile: nominal/profile: flight-like/' "$SRC/config/swarms/starling_pse_
 grep -q "profile: flight-like" "$WORK/two_faint.yaml"
 "$BIN/artms-swarm" run "$WORK/two_faint.yaml" --in-process --duration 4h --seed 7 \
   --no-report --out "$WORK/two_faint" > "$WORK/two_faint.out" 2>&1 || { tail -30 "$WORK/two_faint.out"; exit 1; }
+"$BIN/artms-swarm" run "$SRC/config/swarms/starling_bod_assist.yaml" --in-process --seed 7 \
+  --no-report --out "$WORK/assist" > "$WORK/assist.out" 2>&1 || { tail -30 "$WORK/assist.out"; exit 1; }
 /usr/bin/python3 - "$WORK" <<'PY'
 import csv, json, sys
 work = sys.argv[1]
@@ -50,5 +56,12 @@ assert "too faint" in s3["SV3"]["why"], s3["SV3"]
 waits = [l for l in open(f"{work}/two_faint/events.log") if "target SV3 still waits for BOD" in l]
 assert len(waits) >= 2, "no 'SV3 still waits for BOD' event at the BOD attempts"
 print(f"faint SV3: {s3['SV3']['why']}; {len(waits)} waiting events")
+ta = json.load(open(f"{work}/assist/summary.json"))["observers"]["SV4"]["targets"]
+for k in ("T20", "T150"):
+    t = ta[k]
+    print(f"a-priori too poor: {k} converged at {t['convergence_orbits']} orbits, final dlambda error "
+          f"{t['final_dlambda_error_pct']:.3f} % (1-sigma {t['final_dlambda_sigma_pct']:.3f} %)")
+    assert t["convergence_orbits"] is not None and t["convergence_orbits"] <= 6.0, (k, t)
+    assert abs(t["final_dlambda_error_pct"]) <= 1.0, (k, t)
 print("swarm_bod: ok")
 PY

@@ -505,12 +505,15 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(f.observer()), p)) return;
       const double s2 = std::pow(bearing_sigma(e.imp_sigma_rad), 2);
       as.d2_sum.resize(target_ids_.size(), 0.0);
+      as.unpredicted.resize(target_ids_.size(), 0);
       for (std::size_t k = 0; k < target_ids_.size(); ++k) {
         imp::TargetPrediction pr;
         double d2 = 1e6;
         if (has_estimate_[k] && predict_plane(f, static_cast<int>(k), samus, pr)) {
           const Eigen::Matrix2d S = pr.cov + s2 * Eigen::Matrix2d::Identity();
           d2 = (p - pr.p).dot(S.ldlt().solve(p - pr.p));
+        } else {
+          ++as.unpredicted[k];
         }
         as.d2_sum[k] += std::min(d2, 1e6);
       }
@@ -529,8 +532,17 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
           }
         }
         const int k_best = static_cast<int>(order[0]);
+        // The track is this target's only if no other target could own it:
+        // one without a usable prediction could (bod_assist: the 20 km
+        // target's 3.5-day a-priori has none; its track, nearest the 150 km
+        // target's prediction, inflated that one's covariance, was bound to
+        // it, and the 150 km target never recovered).
+        bool others_predicted = true;
+        for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+          if (static_cast<int>(k) != k_best && as.unpredicted[k] > 0) others_predicted = false;
+        }
         if (best >= opt_.lost_min_d2 && best < opt_.lost_max_d2 && second > opt_.association_ambiguity * best &&
-            !taken && f.counters(k_best).accepted > 0 &&
+            !taken && others_predicted && f.counters(k_best).accepted > 0 &&
             f.counters(k_best).steps_without_update >= opt_.lost_after_steps) {
           // The target's own bearings stopped and a new track sits nearest
           // its prediction, too far for its covariance: it moved (a
@@ -548,6 +560,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
                         since_s, e.track, best, as.n, second, sigma_dv);
           set_suspect(k_best, true, buf);
           as.d2_sum.assign(target_ids_.size(), 0.0);
+          as.unpredicted.assign(target_ids_.size(), 0);
           as.n = 0;
           return;
         }

@@ -266,6 +266,10 @@ class Navigator {
   };
   struct Association {
     std::vector<double> d2_sum;
+    // Per target, the bearings of this track it had no usable prediction
+    // for (no estimate yet, or no plane prediction): such a target could own
+    // the track.
+    std::vector<int> unpredicted;
     int n = 0;
     int target = -1;
     astro::TimeTT last;
