@@ -10,8 +10,8 @@
 // residual) and tracks.csv. Corrupt or unreadable frames are reported with
 // their reason and skipped. When the camera file's focal length fails and
 // the search fits one per frame, every frame is solved again with the one
-// common to the solved frames (--per-frame-focal keeps theirs). Exit status 0 when at least one frame is solved,
-// 3 when none is, 2 on an error.
+// common to the solved frames (--per-frame-focal keeps theirs). Exit status
+// 0 when at least one frame is solved, 3 when none is, 2 on an error.
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
