@@ -209,23 +209,26 @@ int run(int argc, char** argv) {
     fpo.learn_psf = learn_psf;
     // One camera, one focal length: when the camera file's failed and the
     // search fitted a focal length per frame, every frame is solved again
-    // with the one common to the solved frames (their scales averaged with
-    // the matched stars as weights), so that a frame with few stars does not
-    // carry its own scale error into its attitude.
+    // with the one common to the solved frames, so that a frame with few
+    // stars does not carry its own scale error into its attitude: the least
+    // squares scale of all their stars together, sum I_k s_k / sum I_k with
+    // I_k each frame's FrameSummary::focal_scale_information (the matched
+    // stars' count weighs a frame whose stars sit near the centre, and fix
+    // the scale poorly, as much as one whose stars span the field).
     imp::Intrinsics K_use = K;
-    std::vector<std::pair<double, int>> frame_scales;  // (focal_scale, stars_matched) of the solved frames
+    std::vector<std::pair<double, double>> frame_scales;  // (focal_scale, its information) of the solved frames
     for (int pass = 0; pass < 2; ++pass) {
       if (pass == 1) {
         double sw = 0.0, w = 0.0, lo = 1e9, hi = 0.0;
-        for (const auto& [s, n] : frame_scales) {
-          sw += s * n;
-          w += n;
+        for (const auto& [s, info] : frame_scales) {
+          sw += s * info;
+          w += info;
           lo = std::min(lo, s);
           hi = std::max(hi, s);
         }
         const bool searched = std::any_of(frame_scales.begin(), frame_scales.end(),
                                           [](const auto& fsn) { return fsn.first != 1.0; });
-        if (per_frame_focal || frame_scales.size() < 2 || !searched) break;
+        if (per_frame_focal || frame_scales.size() < 2 || !searched || !(w > 0.0)) break;
         K_use.fx = K.fx * sw / w;
         K_use.fy = K.fy * sw / w;
         std::fprintf(stderr,
@@ -309,7 +312,7 @@ int run(int argc, char** argv) {
                       fr.residual_rms_rad / astro::kArcsecToRad, fr.attitude_sigma_rad / astro::kArcsecToRad,
                       K_use.fx * fr.focal_scale, fr.psf_sigma_px);
         att << line;
-        if (pass == 0) frame_scales.emplace_back(K_use.fx * fr.focal_scale / K.fx, fr.stars_matched);
+        if (pass == 0) frame_scales.emplace_back(K_use.fx * fr.focal_scale / K.fx, fr.focal_scale_information);
         for (const auto& st : fr.stars) {
           std::snprintf(line, sizeof line, "%d,%s,%.4f,%.4f,%d,%.3f,%d,%.4f\n", k, file.c_str(), st.x_px, st.y_px,
                         st.catalog_id, st.residual_rad / astro::kArcsecToRad, st.saturated ? 1 : 0, st.sigma_px);

@@ -112,6 +112,17 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     }
   }
   out.focal_scale = focal_scale_;
+  if (id.usable && opt_.focal_search_fraction > 0.0 && focal_scale_ != 1.0 && id.matches.size() >= 3) {
+    // Half the second difference of N rms^2 over +-1e-4 of scale (the loss
+    // is quadratic in the scale this near its minimum).
+    const double h = 1e-4, n = static_cast<double>(id.matches.size());
+    const auto loss = [&](double s) {
+      const double r = scale_residual_rad(px, id, s);
+      return n * r * r;
+    };
+    const double info = 0.5 * (loss(focal_scale_ + h) - 2.0 * loss(focal_scale_) + loss(focal_scale_ - h)) / (h * h);
+    out.focal_scale_information = std::isfinite(info) && info > 0.0 ? info : 0.0;
+  }
   out.status = !det.usable || dirs.size() < 3 ? "no_detections" : (id.usable ? "ok" : "not_identified");
   if (!det.usable) {
     out.why = det.why;

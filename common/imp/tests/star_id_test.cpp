@@ -19,6 +19,7 @@
 
 #include "artms/astro/constants.hpp"
 #include "artms/imp/detection.hpp"
+#include "artms/imp/frame_processor.hpp"
 #include "artms/testing/testing.hpp"
 #include "imp_test_frames.hpp"
 
@@ -547,6 +548,47 @@ TEST(StarIdRealImages, AllEightFramesAreSelfConsistent) {
       worst / astro::kDegToRad, std::asin(zenith.z()) / astro::kDegToRad,
       std::fmod(std::atan2(zenith.y(), zenith.x()) / astro::kDegToRad + 360.0, 360.0) / 15.0);
   EXPECT_LT(worst, 3.0 * astro::kDegToRad);
+}
+
+// Lost in space with a focal length 1 % long (FrameProcessorOptions::
+// focal_search_fraction): every rendered frame is identified and its scale
+// refined; FrameSummary::focal_scale_information is the curvature that
+// makes the frames' scale errors unit-variance: z_k = (s_k - s_true) /
+// sqrt(sigma^2 / I_k), sigma^2 the per-axis bearing variance (rms^2 / 2 of
+// the frame's star residuals).
+TEST(StarId, FocalSearchRefinesTheScaleWithItsInformation) {
+  const auto cam = nst_camera();
+  Intrinsics k = intrinsics_of(cam);
+  k.fx *= 1.01;
+  k.fy *= 1.01;
+  const double s_true = 1.0 / 1.01;
+  FrameProcessorOptions opt;
+  opt.focal_search_fraction = 0.03;
+  FrameProcessor processor(k, nst_catalog(), opt);
+  const auto& frames = rendered_frames();
+  int solved = 0;
+  double z2 = 0.0, sw = 0.0, w = 0.0;
+  for (std::size_t i = 0; i < 12; ++i) {
+    const FrameSummary s = processor.process(frames[i].frame.pixels, frame_epoch().plus_seconds(600.0 * static_cast<double>(i)));
+    if (s.status != "ok") continue;
+    ++solved;
+    ASSERT_GT(s.focal_scale_information, 0.0);
+    const double sigma2 = 0.5 * s.residual_rms_rad * s.residual_rms_rad;
+    const double z = (s.focal_scale - s_true) / std::sqrt(sigma2 / s.focal_scale_information);
+    std::printf("  frame %zu: %d stars, scale error %+.1f ppm, 1-sigma %.1f ppm, z %+.2f\n", i, s.stars_matched,
+                1e6 * (s.focal_scale - s_true), 1e6 * std::sqrt(sigma2 / s.focal_scale_information), z);
+    z2 += z * z;
+    sw += s.focal_scale * s.focal_scale_information / sigma2;
+    w += s.focal_scale_information / sigma2;
+  }
+  ASSERT_GE(solved, 10);
+  std::printf("[ figures ] %d frames with the focal length 1 %% long: rms z %.2f; weighted mean scale error %+.1f ppm "
+              "(1-sigma %.1f ppm)\n",
+              solved, std::sqrt(z2 / solved), 1e6 * (sw / w - s_true), 1e6 / std::sqrt(w));
+  // The information is neither far too large nor far too small.
+  EXPECT_GT(std::sqrt(z2 / solved), 0.4);
+  EXPECT_LT(std::sqrt(z2 / solved), 2.5);
+  EXPECT_LT(std::abs(sw / w - s_true), 4.0 / std::sqrt(w));
 }
 
 }  // namespace

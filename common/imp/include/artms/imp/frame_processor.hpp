@@ -124,6 +124,12 @@ struct FrameSummary {
   // Focal length in use over the nominal one (1 unless focal_search_fraction
   // found another).
   double focal_scale = 1.0;
+  // How well this frame's stars fix that scale (when it was refined): half
+  // the curvature of sum_i |b_i - A r_i|^2 (rad^2, equal weights, the
+  // attitude A re-solved at each scale) at focal_scale, so that the least
+  // squares scale common to several frames is sum I_k s_k / sum I_k. 0 when
+  // the scale was not refined.
+  double focal_scale_information = 0.0;
   // The PSF width detection used on this frame (learned or the option's).
   double psf_sigma_px = 0.0;
   Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
