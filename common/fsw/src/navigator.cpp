@@ -440,11 +440,22 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
   messages_.push_back("SOD initialised at " + from + what);
 }
 
-bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const {
+bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out,
+                              std::optional<astro::TimeTT> plane_t) const {
   Eigen::VectorXd mean;
   Eigen::MatrixXd P;
   observer_target_block(f, k, mean, P);
-  return samus.unscented_prediction(-1, mean, P, los_eci_of, astro::cartesian_from_qns(f.observer()), out);
+  astro::StateVector observer = astro::cartesian_from_qns(f.observer());
+  if (plane_t) {
+    // The observer a fraction of a second away (a time-tag offset): one
+    // Taylor step of two-body motion moves its RTN frame by n dt.
+    const double dt = astro::seconds_between(f.epoch(), *plane_t);
+    const double r = observer.r_m.norm();
+    const Eigen::Vector3d a = -astro::kGmEarth_m3ps2 * observer.r_m / (r * r * r);
+    observer.r_m += observer.v_mps * dt + 0.5 * a * dt * dt;
+    observer.v_mps += a * dt;
+  }
+  return samus.unscented_prediction(-1, mean, P, los_eci_of, observer, out);
 }
 
 void Navigator::process(const Event& e, const imp::Samus& samus) {
@@ -504,6 +515,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
       Eigen::Vector2d p;
       if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(f.observer()), p)) return;
       const double s2 = std::pow(bearing_sigma(e.imp_sigma_rad), 2);
+      if (as.n == 0) as.first = e.t;
       as.d2_sum.resize(target_ids_.size(), 0.0);
       as.unpredicted.resize(target_ids_.size(), 0);
       for (std::size_t k = 0; k < target_ids_.size(); ++k) {
@@ -524,9 +536,16 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
         std::sort(order.begin(), order.end(), [&](auto a, auto b) { return as.d2_sum[a] < as.d2_sum[b]; });
         const double best = as.d2_sum[order[0]] / as.n;
         const double second = order.size() > 1 ? as.d2_sum[order[1]] / as.n : 1e30;
+        // The target is taken when another track bound to it has had a
+        // bearing since this one's association began (both see an object at
+        // once). A track that ended before this one began handed the target
+        // over: SAMUS follows a target on successive tracks (PSE anti-velocity
+        // camera: a new track every ~1/3 orbit, the old one joined again
+        // across its gap), and waiting for the old one to age out lost
+        // half of SV2's bearings.
         bool taken = false;
         for (const auto& [tid, other] : tracks_) {
-          if (tid != e.track && other.target == static_cast<int>(order[0]) &&
+          if (tid != e.track && other.target == static_cast<int>(order[0]) && !(other.last < as.first) &&
               astro::seconds_between(other.last, e.t) < 1800.0) {
             taken = true;
           }
@@ -1418,9 +1437,17 @@ std::vector<imp::TargetPrediction> Navigator::predictions(astro::TimeTT t, const
     const astro::Vec6 a_roe = filter_->a_roe_m(as.target);
     const astro::Vec6 sig = filter_->a_roe_sigma_m(as.target);
     if (!(sig[1] < opt_.aided_max_dlambda_fraction * a_roe.head<2>().norm())) continue;
-    if (!f && !(f = predicted_to(t))) return out;
+    // SAMUS projects the frame's candidates with the observer at the frame's
+    // time tag t; the image saw the target at t_image, the tag corrected by
+    // the uplinked correction and SOD's estimated offset (PSE flight, -0.4 s
+    // tags: predicted at t, SOD's prediction was 3.9e-4 rad (n * 0.4 s) off
+    // every candidate, beyond the aided gate, and SV2's tracks broke every
+    // third of an orbit).
+    const astro::TimeTT t_tag = t.plus_seconds(up_.observer.camera.time_tag_correction_s);
+    const astro::TimeTT t_image = t_tag.plus_seconds(-time_tag_offset_at(t_tag));
+    if (!f && !(f = predicted_to(t_image))) return out;
     imp::TargetPrediction p;
-    if (predict_plane(*f, as.target, samus, p)) {
+    if (predict_plane(*f, as.target, samus, p, t)) {
       p.track_id = tid;
       out.push_back(p);
     }

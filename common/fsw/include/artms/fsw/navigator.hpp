@@ -272,6 +272,7 @@ class Navigator {
     std::vector<int> unpredicted;
     int n = 0;
     int target = -1;
+    astro::TimeTT first;  // the first bearing of the association under way
     astro::TimeTT last;
     int gated_in_row = 0;  // successive bearings of the bound track refused by the gate
     int segment = 0;       // the track's segment when it was bound
@@ -406,7 +407,12 @@ class Navigator {
   [[nodiscard]] double bearing_sigma(double imp_sigma_rad) const;
   // Unscented prediction of target k's tracking-plane coordinates from the
   // filter state (at the filter epoch).
-  bool predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out) const;
+  // The target's predicted tracking-plane position at the filter's epoch,
+  // projected with the observer's RTN frame at the filter's epoch or, when
+  // given, at plane_t (the frame's time tag SAMUS projects its candidates
+  // at, when the filter was predicted to the image time as SOD knows it).
+  bool predict_plane(const sod::SodFilter& f, int k, const imp::Samus& samus, imp::TargetPrediction& out,
+                     std::optional<astro::TimeTT> plane_t = std::nullopt) const;
   // A target has an active bound SAMUS track (its last bearing < 30 min before t).
   [[nodiscard]] bool tracked(int k, astro::TimeTT t) const;
 };
