@@ -232,7 +232,11 @@ void Observer::take_relays(std::vector<bus::IslBroadcast> relays, astro::TimeTT 
 void Observer::keep_for_isl(std::int64_t t_ns, int track, const Eigen::Vector3d& u_eci, double sigma_rad) {
   if (track == bus::kUntracked) return;  // untracked candidate: not a measurement
   bus::BearingMeasurement b;
-  b.t_tt_ns = t_ns;
+  // The image time as the ground calibrated it (the uplinked time-tag
+  // correction): a receiver cannot know the sender's camera clock. SOD's own
+  // estimate of the offset is not applied (docs/sod.md, "Time tags and the
+  // ISL": it made the receivers' errors a bias common to every bearing).
+  b.t_tt_ns = astro::TimeTT{t_ns}.plus_seconds(up_.observer.camera.time_tag_correction_s).ns_since_j2000;
   const std::string label = track >= 0 ? me_ + "-" + std::to_string(track)
                                        : me_ + "-target-" + std::to_string(bus::single_detection_target(track));
   b.track = bus::bounded(label, bus::kIdChars);
