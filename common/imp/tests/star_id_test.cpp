@@ -569,7 +569,8 @@ TEST(StarId, FocalSearchRefinesTheScaleWithItsInformation) {
   int solved = 0;
   double z2 = 0.0, sw = 0.0, w = 0.0;
   for (std::size_t i = 0; i < 12; ++i) {
-    const FrameSummary s = processor.process(frames[i].frame.pixels, frame_epoch().plus_seconds(600.0 * static_cast<double>(i)));
+    const astro::TimeTT t = frame_epoch().plus_seconds(600.0 * static_cast<double>(i));
+    const FrameSummary s = processor.process(frames[i].frame.pixels, t);
     if (s.status != "ok") continue;
     ++solved;
     ASSERT_GT(s.focal_scale_information, 0.0);
