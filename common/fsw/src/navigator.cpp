@@ -156,6 +156,7 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   suspect_.assign(target_ids_.size(), false);
   last_fit_t_.assign(target_ids_.size(), up.epoch);
   last_bod_.resize(target_ids_.size());
+  manoeuvre_flagged_.assign(target_ids_.size(), std::nullopt);
   bod_opt_ = bod_options(up.tuning.bod);
   if (up.tuning.bod.enabled) next_bod_ = up.epoch.plus_seconds(up.tuning.bod.period_s);
   local_.assign(target_ids_.size(), 0);
@@ -424,6 +425,7 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
   }
   filter_->initialize(t0, filter_->make_state(obs, roes, aux), P);
   suspect_.assign(target_ids_.size(), false);
+  manoeuvre_flagged_.assign(target_ids_.size(), std::nullopt);
   tracks_.clear();
   reinit_pending_ = false;
   std::string what;
@@ -825,6 +827,7 @@ void Navigator::check_health() {
                     h.targets[k].reason.c_str(), sigma_dv);
       suspect_[k] = false;
       set_suspect(ki, true, buf);
+      if (!manoeuvre_flagged_[k]) manoeuvre_flagged_[k] = f.epoch();
       continue;
     }
     if (c != sod::HealthCondition::kLargeResiduals && c != sod::HealthCondition::kOutOfRange) continue;
@@ -835,6 +838,7 @@ void Navigator::check_health() {
       if (as.target == ki) as = Association{};
     }
     suspect_[k] = false;
+    manoeuvre_flagged_[k].reset();
     if (have) {
       f.reinitialize_target(ki, roe, P);
     } else {
@@ -930,6 +934,7 @@ void Navigator::bind_track(int track, int k, astro::TimeTT t) {
 void Navigator::set_target_from_bod(int k, int track, const OsculatingRoe& b, astro::TimeTT t, const std::string& why) {
   filter_->reinitialize_target(k, b.roe, b.P);
   suspect_[static_cast<std::size_t>(k)] = false;
+  manoeuvre_flagged_[static_cast<std::size_t>(k)].reset();
   has_estimate_[static_cast<std::size_t>(k)] = true;
   for (auto& [tid, as] : tracks_) {
     if (as.target == k) as = Association{};
@@ -972,16 +977,30 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     }
     const int track = it->first;
     ++it;
+    // The target of a bound track that health check 5 flagged: only the
+    // bearings after the flag (after its manoeuvre) make its batch.
+    const auto bound_now = tracks_.find(track);
+    const int bound_target = bound_now != tracks_.end() ? bound_now->second.target : -1;
+    const bool after = bound_target >= 0 && manoeuvre_flagged_[static_cast<std::size_t>(bound_target)].has_value();
+    const astro::TimeTT after_t = after ? *manoeuvre_flagged_[static_cast<std::size_t>(bound_target)] : t_est;
     std::vector<bod::Measurement> batch;
     astro::TimeTT last = h.front().t;
+    astro::TimeTT first = t_est;
     for (const auto& b : h) {
-      if (b.t > t_est) continue;
+      if (b.t > t_est || (after && b.t < after_t)) continue;
+      first = std::min(first, b.t);
       // The time tags as SOD knows them: less its estimated offset (and drift).
       batch.push_back({b.t.plus_seconds(-time_tag_offset_at(b.t)), b.u_eci, b.q_cam_from_eci.toRotationMatrix()});
       last = std::max(last, b.t);
     }
     // A track that is gone (nothing in the latest half hour), or too short.
     if (static_cast<int>(batch.size()) < bod_opt_.min_measurements || astro::seconds_between(last, t_est) > 1800.0) {
+      if (after) {
+        messages_.push_back("BOD on IMP track " + std::to_string(track) + " waits: " + std::to_string(batch.size()) +
+                            " of " + std::to_string(bod_opt_.min_measurements) + " bearings of target " +
+                            target_ids_[static_cast<std::size_t>(bound_target)] + " since health check 5 flagged it at " +
+                            astro::utc_string(after_t, 0));
+      }
       continue;
     }
     ++attempted;
@@ -1054,7 +1073,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     }
     const double chi2 = up_.tuning.bod.check_chi2;
     const auto bound = tracks_.find(track);
-    char buf[200];
+    char buf[320];
     if (bound != tracks_.end() && bound->second.target >= 0) {
       // Health check (1) of the track's target.
       const int k = bound->second.target;
@@ -1067,6 +1086,17 @@ void Navigator::run_bod(astro::TimeTT t_est) {
                       d2, chi2);
         messages_.push_back(head + r.brief());
         decided(k, "health check 1 failed: SOD re-initialised from BOD", d2);
+        set_target_from_bod(k, track, b, t_est, buf);
+      } else if (const auto flagged = manoeuvre_flagged_[static_cast<std::size_t>(k)]; flagged && first >= *flagged) {
+        // After an unknown manoeuvre SOD's inflated covariance is a guess;
+        // a batch made only of later bearings is not (paper: re-initialise
+        // from the most recent BOD estimate).
+        std::snprintf(buf, sizeof buf,
+                      "re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre at %s "
+                      "(squared Mahalanobis distance %.1f between BOD and SOD)",
+                      astro::utc_string(*flagged, 0).c_str(), d2);
+        messages_.push_back(head + r.brief());
+        decided(k, "SOD re-initialised from BOD after a manoeuvre (health check 5)", d2);
         set_target_from_bod(k, track, b, t_est, buf);
       } else {
         decided(k, "health check 1 passed", d2);
@@ -1150,6 +1180,13 @@ void Navigator::run_bod(astro::TimeTT t_est) {
                     "re-initialised from BOD",
                     d2_best, chi2);
       decided(best, "health check 1 failed: SOD re-initialised from BOD (unbound track)", d2_best);
+      set_target_from_bod(best, track, b, t_est, buf);
+    } else if (const auto flagged = manoeuvre_flagged_[static_cast<std::size_t>(best)]; flagged && first >= *flagged) {
+      std::snprintf(buf, sizeof buf,
+                    "re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre at %s "
+                    "(unbound track; squared Mahalanobis distance %.1f between BOD and SOD)",
+                    astro::utc_string(*flagged, 0).c_str(), d2_best);
+      decided(best, "SOD re-initialised from BOD after a manoeuvre (health check 5, unbound track)", d2_best);
       set_target_from_bod(best, track, b, t_est, buf);
     } else if (sigma_bod < sigma_sod) {
       std::snprintf(buf, sizeof buf,

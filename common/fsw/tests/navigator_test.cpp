@@ -289,7 +289,9 @@ struct BodRun {
   astro::Vec6 truth_a_roe = astro::Vec6::Zero();
 };
 
-BodRun bod_run(config::ObserverUplink up, Truth& truth, int minutes) {
+// burn_minute >= 0: the target burns burn_rtn_mps then (not in the uplink).
+BodRun bod_run(config::ObserverUplink up, Truth& truth, int minutes, int burn_minute = -1,
+               const astro::Vec3& burn_rtn_mps = astro::Vec3::Zero()) {
   Navigator nav(up, j2_forces());
   imp::Samus samus;
   imp::TrackerInput in;
@@ -303,6 +305,7 @@ BodRun bod_run(config::ObserverUplink up, Truth& truth, int minutes) {
   for (int k = 0; k <= minutes; ++k) {
     const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
     truth.advance_to(t);
+    if (k == burn_minute) truth.apply_target_dv(0, burn_rtn_mps);
     nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
     if (k > 0) {
       const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
@@ -370,6 +373,32 @@ TEST(NavigatorBod, HealthCheck1ReinitialisesATargetSodIsSureOfAndWrongAbout) {
   EXPECT_GT(r.attempts[0].mahalanobis2, 50.0);
   const astro::Vec6 err = r.report.targets[0].roe * truth.observer().a_m - r.truth_a_roe;
   EXPECT_LT(std::abs(err[1]), 1000.0) << err.transpose();
+}
+
+TEST(NavigatorBod, AManoeuvreFlaggedByCheck5IsReinitialisedFromTheFirstBatchAfterIt) {
+  // SV2 burns 5 cm/s along-track at 4 h, unknown to SV4: health check 5 flags
+  // it, and the first BOD batch made only of bearings after the flag
+  // re-initialises it whether or not check 1 would have failed (issue 16).
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(1);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng(3);
+  const config::ObserverUplink up = uplink_at_truth(truth, rng);
+  const BodRun r = bod_run(up, truth, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
+  ASSERT_TRUE(said(r, "SOD target SV2 suspect (health 1): its bearings do not fit its covariance (health check 5"));
+  ASSERT_TRUE(said(r, "SOD target SV2 re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre"));
+  const auto reinit = std::find_if(r.attempts.begin(), r.attempts.end(), [](const bus::BodAttempt& a) {
+    return a.action.find("after a manoeuvre") != std::string::npos;
+  });
+  ASSERT_NE(reinit, r.attempts.end());
+  // Its batch began after the burn: 4 h plus one 90-min BOD period at the least.
+  EXPECT_GE(reinit->t_est_tt_ns, kT0.plus_seconds(240 * 60 + 5400).ns_since_j2000);
+  ASSERT_EQ(r.report.targets.size(), 1u);
+  const astro::Vec6 err = r.report.targets[0].roe * truth.observer().a_m - r.truth_a_roe;
+  for (int i = 0; i < 6; ++i) {
+    const double sigma = std::sqrt(r.report.targets[0].P_roe(i, i)) * truth.observer().a_m;
+    EXPECT_LT(std::abs(err[i]), 3.0 * sigma) << "ROE " << i << ": " << err.transpose();
+  }
 }
 
 }  // namespace

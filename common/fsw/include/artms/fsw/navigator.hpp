@@ -357,6 +357,10 @@ class Navigator {
   // has fitted since (telemetry health 1, "suspect").
   std::vector<bool> suspect_;
   std::vector<astro::TimeTT> last_fit_t_;  // filter epoch of each target's latest accepted bearing
+  // Per target: when health check 5 first flagged it (an unknown manoeuvre)
+  // since its latest (re-)initialisation. The first usable BOD batch of its
+  // track made only of later bearings re-initialises it (issue 16).
+  std::vector<std::optional<astro::TimeTT>> manoeuvre_flagged_;
   void set_suspect(int k, bool on, const std::string& why);
   void run_bod(astro::TimeTT t_est);
   // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating
