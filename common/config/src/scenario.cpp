@@ -1333,7 +1333,8 @@ class Parser {
     if (const Val* bv = m.find("bod")) {
       Map bm(ctx_, *bv,
              {"enabled", "period", "samples", "max_iterations", "range_min_m", "range_max_m", "min_measurements",
-              "max_measurements", "batch_orbits", "max_sigma_range_fraction", "max_residual_arcsec", "check_chi2"});
+              "max_measurements", "batch_orbits", "max_sigma_range_fraction", "max_residual_arcsec", "check_chi2",
+              "reinit_after_check5"});
       if (bm.ok()) {
         bool_field(ctx_, bm, "enabled", t.bod.enabled);
         duration_field(ctx_, bm, "period", t.bod.period_s, false);
@@ -1357,6 +1358,7 @@ class Parser {
         number_field(ctx_, bm, "max_sigma_range_fraction", t.bod.max_sigma_range_fraction, positive());
         number_field(ctx_, bm, "max_residual_arcsec", t.bod.max_residual_arcsec, positive(), "arcsec");
         number_field(ctx_, bm, "check_chi2", t.bod.check_chi2, positive());
+        bool_field(ctx_, bm, "reinit_after_check5", t.bod.reinit_after_check5);
       }
     }
     if (const Val* sv = m.find("sod")) {

@@ -827,7 +827,7 @@ void Navigator::check_health() {
                     h.targets[k].reason.c_str(), sigma_dv);
       suspect_[k] = false;
       set_suspect(ki, true, buf);
-      if (!manoeuvre_flagged_[k]) manoeuvre_flagged_[k] = f.epoch();
+      if (up_.tuning.bod.reinit_after_check5 && !manoeuvre_flagged_[k]) manoeuvre_flagged_[k] = f.epoch();
       continue;
     }
     if (c != sod::HealthCondition::kLargeResiduals && c != sod::HealthCondition::kOutOfRange) continue;

@@ -377,13 +377,15 @@ TEST(NavigatorBod, HealthCheck1ReinitialisesATargetSodIsSureOfAndWrongAbout) {
 
 TEST(NavigatorBod, AManoeuvreFlaggedByCheck5IsReinitialisedFromTheFirstBatchAfterIt) {
   // SV2 burns 5 cm/s along-track at 4 h, unknown to SV4: health check 5 flags
-  // it, and the first BOD batch made only of bearings after the flag
-  // re-initialises it whether or not check 1 would have failed (issue 16).
+  // it, and with tuning.bod.reinit_after_check5 the first BOD batch made
+  // only of bearings after the flag re-initialises it whether or not check 1
+  // would have failed (issue 16).
   auto a_roe = starling_a_roe_m();
   a_roe.resize(1);
   Truth truth(kT0, observer_at_start(), a_roe);
   std::mt19937_64 rng(3);
-  const config::ObserverUplink up = uplink_at_truth(truth, rng);
+  config::ObserverUplink up = uplink_at_truth(truth, rng);
+  up.tuning.bod.reinit_after_check5 = true;
   const BodRun r = bod_run(up, truth, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
   ASSERT_TRUE(said(r, "SOD target SV2 suspect (health 1): its bearings do not fit its covariance (health check 5"));
   ASSERT_TRUE(said(r, "SOD target SV2 re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre"));
@@ -399,6 +401,12 @@ TEST(NavigatorBod, AManoeuvreFlaggedByCheck5IsReinitialisedFromTheFirstBatchAfte
     const double sigma = std::sqrt(r.report.targets[0].P_roe(i, i)) * truth.observer().a_m;
     EXPECT_LT(std::abs(err[i]), 3.0 * sigma) << "ROE " << i << ": " << err.transpose();
   }
+  // Off (the default): check 5's inflation alone; BOD only confirms.
+  Truth truth_off(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng_off(3);
+  const BodRun off = bod_run(uplink_at_truth(truth_off, rng_off), truth_off, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
+  EXPECT_TRUE(said(off, "(health check 5"));
+  EXPECT_FALSE(said(off, "first batch after health check 5"));
 }
 
 }  // namespace

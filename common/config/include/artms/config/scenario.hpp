@@ -166,6 +166,10 @@ struct BodTuning {
   double max_sigma_range_fraction = 0.3;  // uncertainty tolerance of a usable result
   double max_residual_arcsec = 15.0;      // post-fit RMS tolerance (a few times IMP's ~3")
   double check_chi2 = 50.0;          // health check 1: squared Mahalanobis distance (docs/bod.md: why not chi2(6) 99.9 % = 22.5)
+  // After health check 5 flags a target, its first BOD batch made only of
+  // later bearings re-initialises it whatever check 1 says (docs/bod.md:
+  // off by default, measured worse in the flight-like world).
+  bool reinit_after_check5 = false;
 };
 struct SodTuning {
   double period_s = 60.0;
