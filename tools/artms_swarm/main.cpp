@@ -90,14 +90,16 @@ void add_coarse_orbit(const artms::config::Scenario& sc, const artms::config::Ob
 }
 
 void write_onboard_star_catalog(const std::filesystem::path& path, artms::astro::TimeTT epoch) {
-  const auto bsc = artms::imaging::StarCatalog::load_bsc5(artms::io::data_dir() + "/stars/bsc5.dat", 6.5);
+  // Every BSC5 star with its magnitude: the observer identifies with the
+  // brighter ones (fsw::kStarIdVmagLimit) and checks blends with all.
+  const auto bsc = artms::imaging::StarCatalog::load_bsc5(artms::io::data_dir() + "/stars/bsc5.dat", 99.0);
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path.string());
-  out << "catalog_id,ux_eci,uy_eci,uz_eci\n";
-  char line[160];
+  out << "catalog_id,ux_eci,uy_eci,uz_eci,vmag\n";
+  char line[192];
   for (const auto& s : bsc.stars()) {
     const auto u = s.unit_eci_at(epoch);
-    std::snprintf(line, sizeof line, "%d,%.15f,%.15f,%.15f\n", s.catalog_id, u.x(), u.y(), u.z());
+    std::snprintf(line, sizeof line, "%d,%.15f,%.15f,%.15f,%.2f\n", s.catalog_id, u.x(), u.y(), u.z(), s.vmag);
     out << line;
   }
 }

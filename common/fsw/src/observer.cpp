@@ -85,8 +85,17 @@ Observer::Observer(ObserverSetup setup, std::string source)
   if (up_.camera_calibration.present() && !up_.star_catalog_file.empty()) {
     const auto& c = up_.camera_calibration;
     K_ = intrinsics_from(c);
-    catalog_ = imp::StarIdCatalog::build(setup_.star_catalog, 2.0 * K_.half_diagonal_fov_rad());
+    // Identification with the stars down to kStarIdVmagLimit; the blend
+    // check with every star of the file (FrameProcessor::set_blend_stars).
+    std::vector<imp::CatalogStar> id_stars;
+    std::vector<Eigen::Vector3d> blend_stars;
+    for (const auto& s : setup_.star_catalog) {
+      if (s.vmag <= kStarIdVmagLimit) id_stars.push_back(s);
+      blend_stars.push_back(s.u_eci);
+    }
+    catalog_ = imp::StarIdCatalog::build(std::move(id_stars), 2.0 * K_.half_diagonal_fov_rad());
     processor_.emplace(K_, *catalog_, frame_processor_options(c, up_.tuning.imp));
+    processor_->set_blend_stars(std::move(blend_stars));
     samus_.emplace(samus_options(c, up_.tuning.imp));
   }
   aided_options_ = aided_detection_options(up_.camera_calibration, up_.tuning.imp);

@@ -20,10 +20,12 @@ std::vector<imp::CatalogStar> read_star_catalog(const std::string& path) {
   while (std::getline(in, line)) {
     ++lineno;
     std::stringstream ss(line);
-    std::string f[4];
+    std::string f[5];
     for (auto& x : f) std::getline(ss, x, ',');
     try {
-      imp::CatalogStar s{std::stoi(f[0]), Eigen::Vector3d(std::stod(f[1]), std::stod(f[2]), std::stod(f[3]))};
+      imp::CatalogStar s{std::stoi(f[0]), Eigen::Vector3d(std::stod(f[1]), std::stod(f[2]), std::stod(f[3])),
+                         f[4].empty() ? 0.0 : std::stod(f[4])};
+      if (!std::isfinite(s.vmag)) throw std::invalid_argument("vmag not finite");
       if (!s.u_eci.allFinite() || std::abs(s.u_eci.norm() - 1.0) > 1e-6) throw std::invalid_argument("not a unit vector");
       out.push_back(s);
     } catch (const std::exception& e) {

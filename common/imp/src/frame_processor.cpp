@@ -243,6 +243,25 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
                                t_s - history_.front().t_s > opt_.persistence.history_max_age_s)) {
     history_.pop_front();
   }
+  // Catalogued stars on the sensor at this attitude (set_blend_stars): a
+  // target spot on one (closer than blend_radius_px, often too close to be
+  // detected on its own: a V 6.53 star 1.1 px from a V 5.3 target moved the
+  // centroid 0.43 px, 15", in starling_pse_flight at 11:35) is a blend.
+  std::vector<Eigen::Vector2d> catalog_px;
+  {
+    const Eigen::Matrix3d R_cam_from_eci = out.q_cam_from_eci.toRotationMatrix();
+    const double cos_fov = std::cos(K_.half_diagonal_fov_rad());
+    const Eigen::Vector3d boresight_eci = R_cam_from_eci.transpose().col(2);
+    const auto add = [&](const Eigen::Vector3d& u_eci) {
+      if (u_eci.dot(boresight_eci) < cos_fov) return;
+      if (const auto star_px = K_.project(R_cam_from_eci * u_eci)) catalog_px.push_back(*star_px);
+    };
+    if (blend_stars_.empty()) {
+      for (const auto& cs : catalog_.stars()) add(cs.u_eci);
+    } else {
+      for (const auto& u : blend_stars_) add(u);
+    }
+  }
   const auto& P = opt_.persistence;
   const double cos_star = std::cos(P.star_tolerance_rad);
   Seen now{t_s, {}, {}};
@@ -260,6 +279,12 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     for (const auto& o : det.centroids) {
       const double d = std::hypot(o.x_px - c.x_px, o.y_px - c.y_px);
       if (d > 0.0 && d < opt_.blend_radius_px) cand.blended = true;
+    }
+    for (const auto& sp : catalog_px) {
+      if ((sp - Eigen::Vector2d(c.x_px, c.y_px)).norm() < opt_.blend_radius_px) {
+        cand.blended = true;
+        cand.on_catalog_star = true;
+      }
     }
     cand.sigma_rad = std::hypot(blend_sigma_px(c.sigma_px, cand.blended, opt_) / K_.fx, out.attitude_sigma_rad);
     now.px.emplace_back(c.x_px, c.y_px);

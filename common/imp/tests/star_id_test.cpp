@@ -592,5 +592,50 @@ TEST(StarId, FocalSearchRefinesTheScaleWithItsInformation) {
   EXPECT_LT(std::abs(sw / w - s_true), 4.0 / std::sqrt(w));
 }
 
+// The blend check against a catalog deeper than the identification one
+// (FrameProcessor::set_blend_stars): a candidate on a rendered star too faint
+// for the identification catalog (V > 6.5) is flagged on_catalog_star and its
+// sigma carries blend_sigma_px; without the deeper catalog it is not (in
+// starling_pse_flight a V 6.53 star 1.1 px from SV2 moved its centroid 15").
+TEST(FrameProcessorBlends, ACandidateOnAStarTooFaintToIdentifyIsABlend) {
+  const auto cam = nst_camera();
+  const Intrinsics k = intrinsics_of(cam);
+  std::vector<Eigen::Vector3d> all;
+  for (const auto& st : bsc5().stars()) all.push_back(st.unit_eci_at(frame_epoch()));
+  FrameProcessor plain(k, nst_catalog());
+  FrameProcessor deep(k, nst_catalog());
+  deep.set_blend_stars(all);
+  const auto& frames = rendered_frames();
+  int on_faint = 0, flagged_deep = 0, flagged_plain = 0, others_flagged = 0;
+  for (std::size_t i = 0; i < 12; ++i) {
+    const astro::TimeTT t = frame_epoch().plus_seconds(3600.0 * static_cast<double>(i));
+    const FrameSummary a = plain.process(frames[i].frame.pixels, t);
+    const FrameSummary b = deep.process(frames[i].frame.pixels, t);
+    if (a.status != "ok" || b.status != "ok") continue;
+    ASSERT_EQ(a.candidates.size(), b.candidates.size());
+    for (std::size_t c = 0; c < b.candidates.size(); ++c) {
+      bool faint_star = false;
+      for (const auto& st : frames[i].frame.stars) {
+        if (st.vmag > kCatalogVmag && std::hypot(st.x_px - b.candidates[c].x_px, st.y_px - b.candidates[c].y_px) < 1.0)
+          faint_star = true;
+      }
+      if (faint_star) {
+        ++on_faint;
+        flagged_deep += b.candidates[c].on_catalog_star ? 1 : 0;
+        flagged_plain += a.candidates[c].on_catalog_star ? 1 : 0;
+        EXPECT_GE(b.candidates[c].sigma_rad, FrameProcessorOptions{}.blend_sigma_px / k.fx);
+      } else if (b.candidates[c].on_catalog_star && !a.candidates[c].on_catalog_star) {
+        ++others_flagged;  // a faint star within blend_radius_px of another candidate
+      }
+    }
+  }
+  std::printf("[ figures ] %d candidates on stars fainter than V %.1f: %d flagged with the deep catalog, %d without\n",
+              on_faint, kCatalogVmag, flagged_deep, flagged_plain);
+  ASSERT_GE(on_faint, 5);
+  EXPECT_EQ(flagged_deep, on_faint);
+  EXPECT_EQ(flagged_plain, 0);
+  EXPECT_LE(others_flagged, on_faint);
+}
+
 }  // namespace
 }  // namespace artms::imp

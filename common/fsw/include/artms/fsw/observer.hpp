@@ -45,8 +45,11 @@ struct ObserverSetup {
 // Reads the uplink (JSON), the star catalog it names (beside it) and the
 // force model's data files from data_dir. Throws naming the file and line.
 ObserverSetup load_observer_setup(const std::string& uplink_path, const std::string& data_dir);
-// The uplinked onboard star catalog: catalog_id,ux_eci,uy_eci,uz_eci.
+// The uplinked onboard star catalog: catalog_id,ux_eci,uy_eci,uz_eci[,vmag].
 std::vector<imp::CatalogStar> read_star_catalog(const std::string& path);
+// The onboard identification catalog: the file's stars down to this visual
+// magnitude (the uplinked file holds fainter ones for the blend check).
+inline constexpr double kStarIdVmagLimit = 6.5;
 
 // IMP exactly as the observer builds it from the uplinked calibration and
 // telecommands (artms-imp and artms-sod-replay use the same functions).

@@ -36,6 +36,7 @@ struct Candidate {
   double sigma_rad = 0.0;  // 1-sigma per axis: centroid noise and attitude uncertainty
   double psf_chi2_z = 0.0;  // detect()'s blend statistic (Centroid::psf_chi2_z)
   bool blended = false;     // blend_sigma_px was added (a neighbour, or the PSF fit)
+  bool on_catalog_star = false;  // a catalogued star within blend_radius_px (detected or not)
 };
 
 struct PersistenceOptions {
@@ -73,7 +74,8 @@ struct FrameProcessorOptions {
   // Forget the previous attitude when the frame is older than this.
   double prior_max_age_s = 600.0;
   PersistenceOptions persistence;
-  // Blends: a candidate with another detection (star or not) closer than
+  // Blends: a candidate with another detection (star or not), or a
+  // catalogued star at the frame's attitude (resolved or not), closer than
   // blend_radius_px has blend_sigma_px added in quadrature to its centroid
   // sigma: the Cramer-Rao sigma of detect() assumes an isolated source, and
   // the wing of a neighbour a few pixels away biases the weighted centroid by
@@ -152,6 +154,11 @@ class FrameProcessor {
   // tag, used for the history ages only.
   FrameSummary process(std::span<const std::uint16_t> pixels, astro::TimeTT t);
   [[nodiscard]] const Intrinsics& intrinsics() const { return K_; }
+  // Directions (ECI unit vectors) of the stars the blend check looks for
+  // beside a candidate (FrameProcessorOptions.blend_radius_px): a catalog
+  // deeper than the identification one (stars too faint to identify still
+  // move a target's centroid). Empty (the default): the identification catalog.
+  void set_blend_stars(std::vector<Eigen::Vector3d> u_eci) { blend_stars_ = std::move(u_eci); }
   // SOD-aided detection (aided_detection.hpp) in the frame process() took
   // last, which must have had a usable attitude: a candidate near the
   // predicted pixel, or nullopt with the reason in *why. A source at the
@@ -180,6 +187,7 @@ class FrameProcessor {
                                                  const AidedDetectionOptions& options) const;
 
  private:
+  std::vector<Eigen::Vector3d> blend_stars_;
   // FrameProcessorOptions::focal_search_fraction: identification over
   // focal-length scales about the current one; on success dirs, id, K_ and
   // focal_scale_ hold the refined scale's.

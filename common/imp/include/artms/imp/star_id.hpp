@@ -57,6 +57,7 @@ namespace artms::imp {
 struct CatalogStar {
   int id = 0;             // catalog number (BSC5: HR)
   Eigen::Vector3d u_eci;  // unit direction at the frame epoch, ECI (J2000)
+  double vmag = 0.0;      // visual magnitude (0 when the catalog file has none)
 };
 
 class StarIdCatalog {
