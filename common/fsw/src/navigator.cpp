@@ -979,8 +979,8 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     ++it;
     // The target of a bound track that health check 5 flagged: only the
     // bearings after the flag (after its manoeuvre) make its batch.
-    const auto bound_now = tracks_.find(track);
-    const int bound_target = bound_now != tracks_.end() ? bound_now->second.target : -1;
+    const auto bound = tracks_.find(track);
+    const int bound_target = bound != tracks_.end() ? bound->second.target : -1;
     const bool after = bound_target >= 0 && manoeuvre_flagged_[static_cast<std::size_t>(bound_target)].has_value();
     const astro::TimeTT after_t = after ? *manoeuvre_flagged_[static_cast<std::size_t>(bound_target)] : t_est;
     std::vector<bod::Measurement> batch;
@@ -1072,7 +1072,6 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       continue;
     }
     const double chi2 = up_.tuning.bod.check_chi2;
-    const auto bound = tracks_.find(track);
     char buf[320];
     if (bound != tracks_.end() && bound->second.target >= 0) {
       // Health check (1) of the track's target.

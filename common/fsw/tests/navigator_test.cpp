@@ -322,6 +322,18 @@ BodRun bod_run(config::ObserverUplink up, Truth& truth, int minutes, int burn_mi
   return out;
 }
 
+// SV2 alone behind SV4 (starling_a_roe_m's first target), and SV4's uplink
+// with SV2's a-priori at truth (uplink_at_truth, noise seed 3).
+Truth sv2_truth() {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(1);
+  return Truth(kT0, observer_at_start(), a_roe);
+}
+config::ObserverUplink sv2_uplink(const Truth& truth) {
+  std::mt19937_64 rng(3);
+  return uplink_at_truth(truth, rng);
+}
+
 bool said(const BodRun& r, const std::string& text) {
   return std::any_of(r.messages.begin(), r.messages.end(),
                      [&](const std::string& m) { return m.find(text) != std::string::npos; });
@@ -360,11 +372,8 @@ TEST(NavigatorBod, HealthCheck1ReinitialisesATargetSodIsSureOfAndWrongAbout) {
   // A-priori 3 km off in dlambda with a 1 m covariance: SOD cannot bind the
   // track; BOD on the unbound track finds the target and health check 1
   // replaces SOD's estimate.
-  auto a_roe = starling_a_roe_m();
-  a_roe.resize(1);
-  Truth truth(kT0, observer_at_start(), a_roe);
-  std::mt19937_64 rng(3);
-  config::ObserverUplink up = uplink_at_truth(truth, rng);
+  Truth truth = sv2_truth();
+  config::ObserverUplink up = sv2_uplink(truth);
   up.apriori[0].roe[1] += 3000.0 / truth.observer().a_m;
   const BodRun r = bod_run(up, truth, 100);
   EXPECT_TRUE(said(r, "SOD target SV2 unhealthy (health check 1: squared Mahalanobis distance")) << r.messages.size();
@@ -380,11 +389,8 @@ TEST(NavigatorBod, AManoeuvreFlaggedByCheck5IsReinitialisedFromTheFirstBatchAfte
   // it, and with tuning.bod.reinit_after_check5 the first BOD batch made
   // only of bearings after the flag re-initialises it whether or not check 1
   // would have failed (issue 16).
-  auto a_roe = starling_a_roe_m();
-  a_roe.resize(1);
-  Truth truth(kT0, observer_at_start(), a_roe);
-  std::mt19937_64 rng(3);
-  config::ObserverUplink up = uplink_at_truth(truth, rng);
+  Truth truth = sv2_truth();
+  config::ObserverUplink up = sv2_uplink(truth);
   up.tuning.bod.reinit_after_check5 = true;
   const BodRun r = bod_run(up, truth, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
   ASSERT_TRUE(said(r, "SOD target SV2 suspect (health 1): its bearings do not fit its covariance (health check 5"));
@@ -402,9 +408,8 @@ TEST(NavigatorBod, AManoeuvreFlaggedByCheck5IsReinitialisedFromTheFirstBatchAfte
     EXPECT_LT(std::abs(err[i]), 3.0 * sigma) << "ROE " << i << ": " << err.transpose();
   }
   // Off (the default): check 5's inflation alone; BOD only confirms.
-  Truth truth_off(kT0, observer_at_start(), a_roe);
-  std::mt19937_64 rng_off(3);
-  const BodRun off = bod_run(uplink_at_truth(truth_off, rng_off), truth_off, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
+  Truth truth_off = sv2_truth();
+  const BodRun off = bod_run(sv2_uplink(truth_off), truth_off, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
   EXPECT_TRUE(said(off, "(health check 5"));
   EXPECT_FALSE(said(off, "first batch after health check 5"));
 }
