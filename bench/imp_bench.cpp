@@ -14,12 +14,14 @@
 #include "artms/astro/constants.hpp"
 #include "artms/astro/frames.hpp"
 #include "artms/astro/time.hpp"
+#include "artms/fsw/observer.hpp"
 #include "artms/imaging/image.hpp"
 #include "artms/imaging/renderer.hpp"
 #include "artms/imp/detection.hpp"
 #include "artms/imp/frame_processor.hpp"
 #include "artms/imp/samus.hpp"
 #include "artms/imp/star_id.hpp"
+#include "artms/render/camera_calibration.hpp"
 
 namespace {
 
@@ -358,13 +360,9 @@ const RealFrames& real_frames() {
       if (s.vmag <= 6.5) stars.push_back({s.catalog_id, s.unit_eci_at(t)});
     }
     auto catalog = imp::StarIdCatalog::build(std::move(stars), 2.0 * intrinsics(cam).half_diagonal_fov_rad());
-    imp::DetectionOptions det;
-    det.psf_sigma_px = cam.psf_sigma_px;
-    det.gain_e_per_dn = cam.gain_e_per_dn;
-    det.saturation_dn = cam.max_dn();
-    imp::StarIdOptions id;
-    id.match_tolerance_rad = cam.match_tolerance_rad;
-    return RealFrames{cam, std::move(images), std::move(catalog), det, id};
+    // IMP's options from the camera file, as artms-imp and the observer build them.
+    const auto fo = fsw::frame_processor_options(render::calibration_from(cam), config::ImpTuning{});
+    return RealFrames{cam, std::move(images), std::move(catalog), fo.detection, fo.star_id};
   }();
   return r;
 }

@@ -14,7 +14,7 @@
 #     focal-length search and then again with the focal length common to
 #     the solved frames (one focal_px for all), within 0.1 % of the ground
 #     solutions' 5116 px, roll within 20", boresight within 6" (issue 19 asks
-#     5": frame Alt40_Azi-135, 8 stars, is at 5.2");
+#     5": frame Alt40_Azi-135, 8 stars, is at 5.4");
 #  6. artms-calibrate on the solved frames of 5: the focal length within
 #     0.05 % of 5116 px, and the written camera file solves every frame;
 #  7. the same frames as FITS (unsigned 16-bit, rows bottom first, DATE-OBS

@@ -280,6 +280,7 @@ int run(int argc, char** argv) {
                     cam.match_tolerance_rad / astro::kArcsecToRad);
       f << buf;
     }
+    if (cam.centroid_gaussian_fit) f << "\ncentroid:\n  method: gaussian_fit\n";
     f.close();
     imaging::CameraModel::load(out);  // what was written loads
     std::printf("camera file: %s\n", out.c_str());

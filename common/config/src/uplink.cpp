@@ -198,7 +198,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
         {"gain_e_per_dn", u.camera_calibration.gain_e_per_dn},
         {"saturation_dn", u.camera_calibration.saturation_dn},
         {"dn_shift_bits", u.camera_calibration.dn_shift_bits},
-        {"match_tolerance_rad", u.camera_calibration.match_tolerance_rad}}},
+        {"match_tolerance_rad", u.camera_calibration.match_tolerance_rad},
+        {"centroid_gaussian_fit", u.camera_calibration.centroid_gaussian_fit}}},
       {"star_catalog_file", u.star_catalog_file},
       {"apriori_age_days", u.apriori_age_days},
       {"coarse_orbit", coarse},
@@ -338,6 +339,7 @@ ObserverUplink read_uplink(const std::string& path) {
       cal.saturation_dn = k.at("saturation_dn").get<double>();
       cal.dn_shift_bits = k.value("dn_shift_bits", 0);
       cal.match_tolerance_rad = k.value("match_tolerance_rad", 0.0);
+      cal.centroid_gaussian_fit = k.value("centroid_gaussian_fit", false);
     }
     if (j.contains("star_catalog_file")) u.star_catalog_file = j.at("star_catalog_file").get<std::string>();
     if (j.contains("apriori_age_days")) u.apriori_age_days = j.at("apriori_age_days").get<double>();

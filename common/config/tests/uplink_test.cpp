@@ -61,11 +61,13 @@ TEST(Uplink, RoundTripsTheCameraEncodingAndMatchTolerance) {
   u.camera_calibration.fx_px = u.camera_calibration.fy_px = 5116.0;
   u.camera_calibration.dn_shift_bits = 4;
   u.camera_calibration.match_tolerance_rad = 2.9e-4;
+  u.camera_calibration.centroid_gaussian_fit = true;
   const std::string path = ::testing::TempDir() + "/uplink_sv4_camera.json";
   write_uplink(u, path);
   const ObserverUplink b = read_uplink(path);
   EXPECT_EQ(b.camera_calibration.dn_shift_bits, 4);
   EXPECT_DOUBLE_EQ(b.camera_calibration.match_tolerance_rad, 2.9e-4);
+  EXPECT_TRUE(b.camera_calibration.centroid_gaussian_fit);
 }
 
 TEST(Uplink, RoundTripsTheCoarseOrbitOfMode4) {

@@ -46,6 +46,7 @@ imp::FrameProcessorOptions frame_processor_options(const config::CameraCalibrati
   fo.detection.gain_e_per_dn = c.gain_e_per_dn;
   fo.detection.saturation_dn = c.saturation_dn;
   if (c.match_tolerance_rad > 0.0) fo.star_id.match_tolerance_rad = c.match_tolerance_rad;
+  if (c.centroid_gaussian_fit) fo.detection.centroid_method = imp::CentroidMethod::kGaussianFit;
   return fo;
 }
 

@@ -200,7 +200,8 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
 
   CameraModel cam;
   const auto top = rd.entries(
-      doc, "", {"name", "sensor", "optics", "photometry", "hot_pixels", "exclusion_deg", "star_id", "stray_light"});
+      doc, "", {"name", "sensor", "optics", "photometry", "hot_pixels", "exclusion_deg", "star_id", "stray_light",
+                     "centroid"});
   if (auto name = rd.text(top, "", "name")) cam.name = *name;
 
   // sensor: geometry (required) and detector parameters.
@@ -339,6 +340,17 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
     if (auto a = rd.number(e, node, p, "match_tolerance_arcsec", false,
                            [](double x) { return x > 0.0 && x <= 3600.0; }, "in (0, 3600]")) {
       cam.match_tolerance_rad = *a * astro::kArcsecToRad;
+    }
+  }
+
+  if (const YAML::Node node = Reader::child(top, "centroid"); node.IsDefined()) {
+    const std::string p = "centroid";
+    const auto e = rd.entries(node, p, {"method"});
+    if (auto m = rd.text(e, p, "method")) {
+      if (*m != "iwcog" && *m != "gaussian_fit") {
+        rd.fail(e.find("method")->second.value.Mark(), "centroid.method", "expected iwcog or gaussian_fit, got " + *m);
+      }
+      cam.centroid_gaussian_fit = *m == "gaussian_fit";
     }
   }
 

@@ -126,6 +126,14 @@ TEST(CameraModel, PixelEncodingAndMatchToleranceKeys) {
   EXPECT_NE(shift.find("sensor.dn_shift_bits"), std::string::npos) << shift;
   const std::string tol = parse_error(std::string(kMinimal) + "star_id: {match_tolerance_arcsec: 0}\n");
   EXPECT_NE(tol.find("star_id.match_tolerance_arcsec"), std::string::npos) << tol;
+  // Centroid method: IWCoG unless the file asks for the Gaussian fit (the
+  // tetra3 sample's undersampled PSF); any other name is an error at its line.
+  EXPECT_FALSE(CameraModel::parse(kMinimal, "cam.yaml").centroid_gaussian_fit);
+  EXPECT_TRUE(cam.centroid_gaussian_fit);
+  EXPECT_FALSE(CameraModel::parse(std::string(kMinimal) + "centroid: {method: iwcog}\n", "cam.yaml").centroid_gaussian_fit);
+  const std::string method = parse_error(std::string(kMinimal) + "centroid: {method: moments}\n");
+  EXPECT_NE(method.find("centroid.method"), std::string::npos) << method;
+  EXPECT_NE(method.find("moments"), std::string::npos) << method;
 }
 
 // The real-hardware effects: off when a file does not name them, on with

@@ -85,6 +85,7 @@ config::CameraCalibration calibration_from(const imaging::CameraModel& cam) {
   c.saturation_dn = cam.max_dn();
   c.dn_shift_bits = cam.dn_shift_bits;
   c.match_tolerance_rad = cam.match_tolerance_rad;
+  c.centroid_gaussian_fit = cam.centroid_gaussian_fit;
   return c;
 }
 

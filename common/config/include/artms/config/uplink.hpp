@@ -28,6 +28,7 @@ struct CameraCalibration {
   double saturation_dn = 4095.0;
   int dn_shift_bits = 0;             // stored value = DN * 2^dn_shift_bits (camera file sensor.dn_shift_bits)
   double match_tolerance_rad = 0.0;  // star identification; 0: IMP's default
+  bool centroid_gaussian_fit = false;  // camera file centroid.method: gaussian_fit (else iwcog)
   [[nodiscard]] bool present() const { return width_px > 0 && height_px > 0 && fx_px > 0.0 && fy_px > 0.0; }
 };
 

@@ -48,6 +48,11 @@ struct CameraModel {
   // Star identification: a measured and a catalog direction match within
   // this angle (uncalibrated distortion, refraction); 0: IMP's default.
   double match_tolerance_rad = 0.0;
+  // IMP's centroids (camera file centroid.method): false = iterative
+  // weighted centre of gravity (iwcog), true = a 2-D Gaussian fit
+  // (gaussian_fit), for an undersampled PSF (sigma below ~0.8 px), where the
+  // IWCoG is pulled towards pixel centres.
+  bool centroid_gaussian_fit = false;
   // Focal lengths in pixels, fx = fy = f / pitch unless the file says otherwise.
   double fx_px = 30e-3 / 5.3e-6;
   double fy_px = 30e-3 / 5.3e-6;
