@@ -249,12 +249,11 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
   // centroid 0.43 px, 15", in starling_pse_flight at 11:35) is a blend.
   std::vector<Eigen::Vector2d> catalog_px;
   {
-    const Eigen::Matrix3d R_cam_from_eci = out.q_cam_from_eci.toRotationMatrix();
     const double cos_fov = std::cos(K_.half_diagonal_fov_rad());
-    const Eigen::Vector3d boresight_eci = R_cam_from_eci.transpose().col(2);
+    const Eigen::Vector3d boresight_eci = R_eci_from_cam.col(2);
     const auto add = [&](const Eigen::Vector3d& u_eci) {
       if (u_eci.dot(boresight_eci) < cos_fov) return;
-      if (const auto star_px = K_.project(R_cam_from_eci * u_eci)) catalog_px.push_back(*star_px);
+      if (const auto star_px = K_.project(R_eci_from_cam.transpose() * u_eci)) catalog_px.push_back(*star_px);
     };
     if (blend_stars_.empty()) {
       for (const auto& cs : catalog_.stars()) add(cs.u_eci);
