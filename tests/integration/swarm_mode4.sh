@@ -6,6 +6,10 @@
 #  2. In-process, 12 h seed 7: SV4's absolute position error falls from
 #     ~6.9 km to below half of it, never beyond 4 sigma in any RTN axis, and
 #     every pair's dlambda error ends within 1 % of range.
+#  3. artms-sod-replay on that run folder for SV4 (mode 4: coarse orbit, every
+#     observer's recorded bearings, no GNSS), with the recorded bearings and
+#     with synthetic white ones: own and remote bearings fused, the position
+#     error falls below half the coarse orbit's; --bearings pixel refused.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -38,5 +42,31 @@ for obs, o in s.items():
     for tgt, t in o["targets"].items():
         print(f"{obs}->{tgt}: dlambda error {t['final_dlambda_error_pct']:.3f} % of range")
         assert t["final_dlambda_error_pct"] <= 1.0, (obs, tgt, t)
+PY
+for m in measured synthetic; do
+  "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings $m --after-orbits 2 > "$WORK/replay_$m.out" \
+    || { cat "$WORK/replay_$m.out"; exit 1; }
+done
+if "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings pixel 2> "$WORK/replay_pixel.err"; then
+  echo "FAIL: --bearings pixel accepted in mode 4"; exit 1
+fi
+grep -q "modes 1 and 3 only" "$WORK/replay_pixel.err"
+"$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings synthetic --leave-out 'SV3>SV2' > "$WORK/replay_leave.out"
+/usr/bin/python3 - "$WORK" <<'PY'
+import json, re, sys
+work = sys.argv[1]
+a = json.load(open(f"{work}/inproc/summary.json"))["observers"]["SV4"]["absolute"]
+for m in ("measured", "synthetic"):
+    out = open(f"{work}/replay_{m}.out").read()
+    print(out.strip())
+    own, own_n, rem, rem_n = map(int, re.search(r"own bearings fused (\d+) of (\d+), remote (\d+) of (\d+)", out).groups())
+    assert own > 100 and rem > own and own >= 0.9 * own_n and rem >= 0.9 * rem_n, out
+    final = float(re.search(r"final error (\d+) m", out).group(1))
+    assert final < 0.5 * a["initial_position_error_m"], (m, final, a)
+full = re.search(r"remote \d+ of (\d+)", open(f"{work}/replay_synthetic.out").read()).group(1)
+out = open(f"{work}/replay_leave.out").read()
+rem, left = map(int, re.search(r"remote \d+ of (\d+), (\d+) left out", out).groups())
+assert left > 0 and rem + left == int(full), (full, out)
+print(f"--leave-out 'SV3>SV2': {left} bearings left out, {rem} remote fused")
 print("swarm_mode4: ok")
 PY

@@ -36,6 +36,8 @@ PY
 cat "$WORK/replay.out" "$WORK/replay_synthetic.out"
 if "$BIN/artms-sod-replay" "$WORK/run" --observer SV9 2> "$WORK/replay_bad.err"; then echo "FAIL: unknown observer accepted"; exit 1; fi
 grep -q "uplink/SV9.json" "$WORK/replay_bad.err" || { echo "FAIL: unclear error"; cat "$WORK/replay_bad.err"; exit 1; }
+if "$BIN/artms-sod-replay" "$WORK/run" --leave-out 'SV2>SV3' 2> "$WORK/replay_bad2.err"; then echo "FAIL: --leave-out accepted in mode 1"; exit 1; fi
+grep -q "mode 4 only" "$WORK/replay_bad2.err" || { echo "FAIL: unclear error"; cat "$WORK/replay_bad2.err"; exit 1; }
 /usr/bin/python3 - "$WORK" <<'PY'
 import csv, json, re, sys
 w = sys.argv[1]

@@ -10,7 +10,11 @@
 //
 // An evaluation tool: it reads truth.oem and frames.csv (bearings are given
 // to the target whose true pixel is within 3 px, where the observer
-// associates them itself), never onboard. Mode 1 only (own bearings).
+// associates them itself), never onboard. Modes 1 and 3 replay the
+// observer's own GNSS fixes and bearings; mode 4 (no GNSS) starts from the
+// uplinked coarse orbit and fuses every observer's recorded bearings (its own
+// as bearings, the others' as remote lines of sight, as the crosslink would
+// carry them) and reports the observer's own absolute consistency too.
 #include <CLI/CLI.hpp>
 
 #include "artms/fsw/navigator.hpp"
@@ -18,6 +22,7 @@
 #include "artms/io/oem.hpp"
 #include "artms/io/paths.hpp"
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -31,6 +36,7 @@
 #include <vector>
 
 #include "artms/astro/elements.hpp"
+#include "artms/astro/frames.hpp"
 #include "artms/astro/roe.hpp"
 #include "artms/astro/time.hpp"
 #include "artms/config/uplink.hpp"
@@ -61,6 +67,211 @@ struct Bearing {
   double sigma_rad;
 };
 
+// Bearings of every observer in the run, each given to the body (observer or
+// target) whose true pixel is within 3 px: t -> (sender, body, u_eci, sigma).
+struct Los {
+  std::string from, to;
+  Eigen::Vector3d u_eci;
+  double sigma_rad;
+};
+
+std::map<std::int64_t, std::vector<Los>> read_all_bearings(
+    const std::string& run_dir, const std::map<std::int64_t, std::map<std::string, astro::StateVector>>& truth,
+    const std::string& mode, std::mt19937_64& rng, int& unassigned) {
+  std::map<std::string, std::map<std::int64_t, std::map<std::string, Eigen::Vector2d>>> true_px;
+  const auto frames = io::CsvTable::read(run_dir + "/frames.csv");
+  for (std::size_t r = 0; r < frames.size(); ++r) {
+    if (frames.text(r, "x_px").empty()) continue;
+    true_px[frames.text(r, "observer")][frames.integer(r, "t_tt_ns")][frames.text(r, "target")] =
+        Eigen::Vector2d(frames.number(r, "x_px"), frames.number(r, "y_px"));
+  }
+  std::normal_distribution<double> normal;
+  std::map<std::int64_t, std::vector<Los>> out;
+  for (const auto& [sender, px] : true_px) {
+    const std::string path = run_dir + "/imp/" + sender + "/measurements.csv";
+    if (!std::filesystem::exists(path)) continue;
+    const auto m = io::CsvTable::read(path);
+    for (std::size_t r = 0; r < m.size(); ++r) {
+      const std::int64_t t = m.integer(r, "t_tt_ns");
+      const Eigen::Vector2d p(m.number(r, "x_px"), m.number(r, "y_px"));
+      std::string body;
+      double best_d = 3.0;
+      const auto frame = px.find(t);
+      if (frame != px.end()) {
+        for (const auto& [id, q] : frame->second) {
+          if ((q - p).norm() < best_d) {
+            best_d = (q - p).norm();
+            body = id;
+          }
+        }
+      }
+      if (body.empty()) {
+        ++unassigned;
+        continue;
+      }
+      Eigen::Vector3d u(m.number(r, "ux_eci"), m.number(r, "uy_eci"), m.number(r, "uz_eci"));
+      const double sigma = m.number(r, "sigma_rad");
+      if (mode == "synthetic") {
+        const Eigen::Vector3d u_true = (truth.at(t).at(body).r_m - truth.at(t).at(sender).r_m).normalized();
+        const Eigen::Vector3d e1 = u_true.unitOrthogonal(), e2 = u_true.cross(e1);
+        u = (u_true + sigma * (normal(rng) * e1 + normal(rng) * e2)).normalized();
+      }
+      out[t].push_back({sender, body, u, sigma});
+    }
+  }
+  return out;
+}
+
+// Navigation mode 4 (docs/sod.md): SOD from the uplinked coarse orbit, the
+// ground a-priori drifted to it, every observer's bearings, no GNSS.
+int replay_mode4(const std::string& run_dir, const std::string& observer, const config::ObserverUplink& up,
+                 const config::SodTuning& tuning, const std::string& bearings_mode, std::uint64_t seed,
+                 double sigma_scale, double after_orbits, const std::string& csv_out,
+                 const std::vector<std::string>& leave_out) {
+  if (!up.coarse_orbit) throw std::runtime_error(run_dir + ": mode 4 without an uplinked coarse orbit");
+  if (bearings_mode == "pixel") throw std::runtime_error("--bearings pixel: modes 1 and 3 only");
+  const auto forces = dynamics::ForceModel::load(up.force_model, io::data_dir());
+  std::vector<std::string> ids;
+  for (const auto& a : up.apriori) ids.push_back(a.target);
+  const int n = static_cast<int>(ids.size());
+  const auto index_of = [&](const std::string& id) {
+    if (id == observer) return sod::LineOfSightMeasurement::kObserver;
+    for (int k = 0; k < n; ++k)
+      if (ids[static_cast<std::size_t>(k)] == id) return k;
+    return sod::LineOfSightMeasurement::kExternal;
+  };
+  const auto truth = read_truth(run_dir + "/truth.oem");
+  std::mt19937_64 rng(seed);
+  int unassigned = 0;
+  const auto bearings = read_all_bearings(run_dir, truth, bearings_mode, rng, unassigned);
+
+  // As the navigator starts mode 4 (navigator.cpp, initialise_at).
+  const auto& c = *up.coarse_orbit;
+  const astro::QnsElements obs0 = astro::qns_from_cartesian(c.x_eci);
+  const Mat6 J0 = astro::jacobian_qns_from_cartesian(c.x_eci);
+  sod::SodOptions opt = fsw::sod_options(tuning);
+  if (tuning.observer_acceleration_sigma_mps2 > 0.0) {
+    opt.q_observer = opt.q_observer.cwiseMax(sod::observer_process_noise_from_acceleration(
+        obs0.a_m, obs0.i_rad, tuning.observer_acceleration_sigma_mps2, astro::orbit_period_s(obs0.a_m)));
+  }
+  sod::StateLayout layout{n, 0};
+  layout.ballistic = tuning.estimate_ballistic;
+  sod::SodFilter f(forces, up.onboard_properties(observer), up.onboard_properties(ids.front()), layout, opt);
+  MatrixXd P = MatrixXd::Zero(layout.size(), layout.size());
+  P.topLeftCorner<6, 6>() = J0 * c.P_rv * J0.transpose() + Mat6::Identity() * 1e-20;
+  std::vector<astro::Roe> roes;
+  for (int k = 0; k < n; ++k) {
+    const auto& ap = up.apriori[static_cast<std::size_t>(k)];
+    const double dt = astro::seconds_between(up.epoch, c.t);
+    roes.push_back(astro::Roe::from_vector(sod::apriori_roe_drifted(ap.roe, obs0.a_m, dt)));
+    P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = sod::apriori_covariance_drifted(ap.P_roe, obs0.a_m, dt);
+  }
+  Eigen::VectorXd aux = Eigen::VectorXd::Zero(layout.size() - layout.aux_offset());
+  if (layout.ballistic) {
+    const dynamics::SpacecraftProperties nominal;
+    const double b = tuning.ballistic_sigma_fraction * nominal.cd * nominal.drag_area_m2 / nominal.mass_kg;
+    for (int k = 0; k < n; ++k) P(layout.ballistic_index(k), layout.ballistic_index(k)) = b * b;
+  }
+  f.initialize(c.t, f.make_state(obs0, roes, aux), P);
+  const double a_m = obs0.a_m, period_s = astro::orbit_period_s(a_m);
+
+  std::FILE* csv = nullptr;
+  if (!csv_out.empty()) {
+    csv = std::fopen(csv_out.c_str(), "w");
+    if (!csv) throw std::runtime_error("cannot write " + csv_out);
+    std::fprintf(csv, "t_tt_ns,err_r_m,err_t_m,err_n_m,sigma_r_m,sigma_t_m,sigma_n_m,nees_pos,err_a_di_m,sigma_a_di_m,"
+                      "err_a_raan_m,sigma_a_raan_m\n");
+  }
+  int fused_local = 0, fused_remote = 0, offered_local = 0, offered_remote = 0, external = 0, left_out = 0;
+  double nees_sum = 0.0, z_di_sum = 0.0;
+  int steps = 0, beyond3 = 0;
+  auto next = bearings.begin();
+  double last_err_m = 0.0, last_sigma_m = 0.0, last_z_di = 0.0;
+  for (const auto& [t_ns, bodies] : truth) {
+    if (t_ns < c.t.ns_since_j2000 || !bodies.count(observer)) continue;
+    for (; next != bearings.end() && next->first <= t_ns; ++next) {
+      if (next->first < f.epoch().ns_since_j2000) continue;
+      const astro::TimeTT t{next->first};
+      for (const auto& b : next->second) {
+        if (std::find(leave_out.begin(), leave_out.end(), b.from + ">" + b.to) != leave_out.end()) {
+          ++left_out;
+          continue;
+        }
+        const int from = index_of(b.from), to = index_of(b.to);
+        if (b.from == observer) {
+          if (to < 0) continue;
+          Eigen::Matrix3d R;
+          const Eigen::Vector3d ex = b.u_eci.unitOrthogonal();
+          R.row(0) = ex;
+          R.row(1) = b.u_eci.cross(ex);
+          R.row(2) = b.u_eci;
+          ++offered_local;
+          fused_local += f.update_bearing(sod::bearing_measurement_from_unit_eci(t, to, b.u_eci, b.sigma_rad * sigma_scale, R)).usable;
+        } else {
+          if (from == sod::LineOfSightMeasurement::kExternal || to == sod::LineOfSightMeasurement::kExternal) {
+            ++external;  // a sender or body this filter does not estimate
+            continue;
+          }
+          sod::LineOfSightMeasurement m;
+          m.t = t;
+          m.from = from;
+          m.to = to;
+          m.los_eci = b.u_eci;
+          m.sigma_rad = b.sigma_rad * sigma_scale;
+          ++offered_remote;
+          fused_remote += f.update_line_of_sight(m).usable;
+        }
+      }
+    }
+    const astro::TimeTT t{t_ns};
+    if (t_ns > f.epoch().ns_since_j2000) f.time_update(t);
+    if (t_ns != f.epoch().ns_since_j2000) continue;
+    // The observer's own orbit against truth: RTN position error and its
+    // covariance (d cartesian / d qns as the inverse of d qns / d cartesian).
+    const astro::StateVector x_true = bodies.at(observer);
+    const astro::QnsElements est = f.observer(), tru = astro::qns_from_cartesian(x_true);
+    const astro::StateVector x_est = astro::cartesian_from_qns(est);
+    const Mat6 Jc = astro::jacobian_qns_from_cartesian(x_est).inverse();
+    const Mat6 Pc = Jc * f.covariance().topLeftCorner<6, 6>() * Jc.transpose();
+    const Eigen::Matrix3d R_rtn = astro::R_rtn_from_eci(x_true);
+    const Eigen::Vector3d e_rtn = R_rtn * (x_est.r_m - x_true.r_m);
+    const Eigen::Matrix3d P_rtn = R_rtn * Pc.topLeftCorner<3, 3>() * R_rtn.transpose();
+    const double nees = e_rtn.dot(P_rtn.ldlt().solve(e_rtn));
+    const double e_di = (est.i_rad - tru.i_rad) * a_m, s_di = std::sqrt(f.covariance()(3, 3)) * a_m;
+    const double e_dr = std::remainder(est.raan_rad - tru.raan_rad, 2.0 * M_PI) * a_m * std::sin(tru.i_rad);
+    const double s_dr = std::sqrt(f.covariance()(4, 4)) * a_m * std::sin(tru.i_rad);
+    const double orbits = static_cast<double>(t_ns - c.t.ns_since_j2000) * 1e-9 / period_s;
+    if (orbits >= after_orbits) {
+      nees_sum += nees;
+      z_di_sum += (e_di / s_di) * (e_di / s_di);
+      ++steps;
+      bool out = false;
+      for (int j = 0; j < 3; ++j) out = out || std::abs(e_rtn[j]) > 3.0 * std::sqrt(P_rtn(j, j));
+      beyond3 += out;
+    }
+    last_err_m = e_rtn.norm();
+    last_sigma_m = std::sqrt(P_rtn.trace());
+    last_z_di = e_di / s_di;
+    if (csv) {
+      std::fprintf(csv, "%lld,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.4f,%.2f,%.2f,%.2f,%.2f\n", static_cast<long long>(t_ns),
+                   e_rtn[0], e_rtn[1], e_rtn[2], std::sqrt(P_rtn(0, 0)), std::sqrt(P_rtn(1, 1)),
+                   std::sqrt(P_rtn(2, 2)), nees, e_di, s_di, e_dr, s_dr);
+    }
+  }
+  if (csv) std::fclose(csv);
+  std::printf("%s, observer %s (mode 4), bearings %s (seed %llu, sigma x %.2f); %d recorded bearings not within 3 px "
+              "of a body, %d of a body or sender this filter does not estimate\n",
+              run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(seed),
+              sigma_scale, unassigned, external);
+  std::printf("  own bearings fused %d of %d, remote %d of %d, %d left out (--leave-out)\n", fused_local,
+              offered_local, fused_remote, offered_remote, left_out);
+  std::printf("  own position after orbit %.1f (%d steps): NEES mean %.2f (3 dof), RTN beyond 3 sigma on %.1f %% of "
+              "steps, a*di mean z^2 %.2f; final error %.0f m (RSS 1-sigma %.0f m), a*di z %+.2f\n",
+              after_orbits, steps, steps ? nees_sum / steps : std::nan(""), steps ? 100.0 * beyond3 / steps : 0.0,
+              steps ? z_di_sum / steps : std::nan(""), last_err_m, last_sigma_m, last_z_di);
+  return 0;
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"Run SOD again, offline, on a run folder's recorded GNSS fixes and IMP bearings of one observer,\n"
                "and report each target's consistency against the truth (an evaluation tool: reads truth).",
@@ -69,7 +280,7 @@ int run(int argc, char** argv) {
   std::uint64_t seed = 1;
   double sigma_scale = 1.0, after_orbits = 4.0, min_separation_px = 0.0;
   app.add_option("run", run_dir, "run folder (artms-swarm run --out)")->required();
-  app.add_option("--observer", observer, "observer id (mode 1)")->capture_default_str();
+  app.add_option("--observer", observer, "observer id (mode 1, 3 or 4)")->capture_default_str();
   app.add_option("--bearings", bearings_mode,
                  "measured: as recorded; synthetic: true line of sight + white noise of the recorded 1-sigma;\n"
                  "pixel: true line of sight + the centroid's recorded error only")
@@ -90,12 +301,25 @@ int run(int argc, char** argv) {
   app.add_option("--process-noise-scale", q_scale, "override tuning.sod.process_noise_scale")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--adaptive-process-noise", adaptive, "override tuning.sod.adaptive_process_noise (true/false)");
+  std::vector<std::string> leave_out;
+  app.add_option("--leave-out", leave_out,
+                 "mode 4: leave out the bearings taken by FROM of TO, given as FROM>TO (e.g. SV2>SV3); repeatable");
   app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES");
   CLI11_PARSE(app, argc, argv);
 
   const std::string up_path = run_dir + "/uplink/" + observer + ".json";
   const config::ObserverUplink up = config::read_uplink(up_path);
-  if (up.apriori.empty()) throw std::runtime_error(up_path + ": no ground a-priori (not a mode 1 or 3 observer)");
+  if (up.apriori.empty()) throw std::runtime_error(up_path + ": no ground a-priori (not a mode 1, 3 or 4 observer)");
+  if (!leave_out.empty() && up.observer.mode != 4)
+    throw std::runtime_error("--leave-out: navigation mode 4 only (" + observer + " ran mode " +
+                             std::to_string(up.observer.mode) + ")");
+  if (up.observer.mode == 4) {
+    config::SodTuning t4 = up.tuning.sod;
+    t4.underweighting = underweighting.value_or(t4.underweighting);
+    t4.adaptive_process_noise = adaptive.value_or(t4.adaptive_process_noise);
+    t4.process_noise_scale = q_scale.value_or(t4.process_noise_scale);
+    return replay_mode4(run_dir, observer, up, t4, bearings_mode, seed, sigma_scale, after_orbits, csv_out, leave_out);
+  }
   if (up.observer.mode == 3) {
     // Remote bearings are not in the run folder (isl.csv has the outcomes,
     // not the payloads): a mode-3 replay is a local-bearings-only replay.
