@@ -9,7 +9,8 @@
 #  3. artms-sod-replay on that run folder for SV4 (mode 4: coarse orbit, every
 #     observer's recorded bearings, no GNSS), with the recorded bearings and
 #     with synthetic white ones: own and remote bearings fused, the position
-#     error falls below half the coarse orbit's; --bearings pixel refused.
+#     error falls below half the coarse orbit's; --bearings pixel refused;
+#     --leave-out removes the bearings it names, --start-roe truth is said.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -52,6 +53,9 @@ if "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings pixel 2> "$W
 fi
 grep -q "modes 1 and 3 only" "$WORK/replay_pixel.err"
 "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings synthetic --leave-out 'SV3>SV2' > "$WORK/replay_leave.out"
+"$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings synthetic --noise-scale 0 --start-roe truth \
+  > "$WORK/replay_truth.out"
+grep -q "targets started at their true ROE" "$WORK/replay_truth.out" || { cat "$WORK/replay_truth.out"; exit 1; }
 /usr/bin/python3 - "$WORK" <<'PY'
 import json, re, sys
 work = sys.argv[1]

@@ -77,7 +77,7 @@ struct Los {
 
 std::map<std::int64_t, std::vector<Los>> read_all_bearings(
     const std::string& run_dir, const std::map<std::int64_t, std::map<std::string, astro::StateVector>>& truth,
-    const std::string& mode, std::mt19937_64& rng, int& unassigned) {
+    const std::string& mode, double noise_scale, std::mt19937_64& rng, int& unassigned) {
   std::map<std::string, std::map<std::int64_t, std::map<std::string, Eigen::Vector2d>>> true_px;
   const auto frames = io::CsvTable::read(run_dir + "/frames.csv");
   for (std::size_t r = 0; r < frames.size(); ++r) {
@@ -114,7 +114,7 @@ std::map<std::int64_t, std::vector<Los>> read_all_bearings(
       if (mode == "synthetic") {
         const Eigen::Vector3d u_true = (truth.at(t).at(body).r_m - truth.at(t).at(sender).r_m).normalized();
         const Eigen::Vector3d e1 = u_true.unitOrthogonal(), e2 = u_true.cross(e1);
-        u = (u_true + sigma * (normal(rng) * e1 + normal(rng) * e2)).normalized();
+        u = (u_true + noise_scale * sigma * (normal(rng) * e1 + normal(rng) * e2)).normalized();
       }
       out[t].push_back({sender, body, u, sigma});
     }
@@ -124,10 +124,21 @@ std::map<std::int64_t, std::vector<Los>> read_all_bearings(
 
 // Navigation mode 4 (docs/sod.md): SOD from the uplinked coarse orbit, the
 // ground a-priori drifted to it, every observer's bearings, no GNSS.
+struct ReplayOptions {
+  std::string bearings_mode = "measured";
+  std::uint64_t seed = 1;
+  double sigma_scale = 1.0, after_orbits = 4.0, noise_scale = 1.0;
+  std::string csv_out;
+  std::vector<std::string> leave_out;  // mode 4: "FROM>TO"
+  bool start_roe_truth = false;        // mode 4: the targets start at their true ROE
+};
+
 int replay_mode4(const std::string& run_dir, const std::string& observer, const config::ObserverUplink& up,
-                 const config::SodTuning& tuning, const std::string& bearings_mode, std::uint64_t seed,
-                 double sigma_scale, double after_orbits, const std::string& csv_out,
-                 const std::vector<std::string>& leave_out) {
+                 const config::SodTuning& tuning, const ReplayOptions& o) {
+  const std::string& bearings_mode = o.bearings_mode;
+  const double sigma_scale = o.sigma_scale, after_orbits = o.after_orbits;
+  const std::string& csv_out = o.csv_out;
+  const std::vector<std::string>& leave_out = o.leave_out;
   if (!up.coarse_orbit) throw std::runtime_error(run_dir + ": mode 4 without an uplinked coarse orbit");
   if (bearings_mode == "pixel") throw std::runtime_error("--bearings pixel: modes 1 and 3 only");
   const auto forces = dynamics::ForceModel::load(up.force_model, io::data_dir());
@@ -141,9 +152,9 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
     return sod::LineOfSightMeasurement::kExternal;
   };
   const auto truth = read_truth(run_dir + "/truth.oem");
-  std::mt19937_64 rng(seed);
+  std::mt19937_64 rng(o.seed);
   int unassigned = 0;
-  const auto bearings = read_all_bearings(run_dir, truth, bearings_mode, rng, unassigned);
+  const auto bearings = read_all_bearings(run_dir, truth, bearings_mode, o.noise_scale, rng, unassigned);
 
   // As the navigator starts mode 4 (navigator.cpp, initialise_at).
   const auto& c = *up.coarse_orbit;
@@ -171,6 +182,16 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
     const dynamics::SpacecraftProperties nominal;
     const double b = tuning.ballistic_sigma_fraction * nominal.cd * nominal.drag_area_m2 / nominal.mass_kg;
     for (int k = 0; k < n; ++k) P(layout.ballistic_index(k), layout.ballistic_index(k)) = b * b;
+  }
+  if (o.start_roe_truth) {
+    // Evaluation only: the relative orbits known exactly at the start (the
+    // a-priori covariance kept), to tell their error's part from the rest.
+    const auto& bodies = truth.at(c.t.ns_since_j2000);
+    const astro::QnsElements o_true = astro::qns_from_cartesian(bodies.at(observer));
+    for (int k = 0; k < n; ++k) {
+      roes[static_cast<std::size_t>(k)] =
+          astro::roe_from_qns(o_true, astro::qns_from_cartesian(bodies.at(ids[static_cast<std::size_t>(k)])));
+    }
   }
   f.initialize(c.t, f.make_state(obs0, roes, aux), P);
   const double a_m = obs0.a_m, period_s = astro::orbit_period_s(a_m);
@@ -261,8 +282,9 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
   if (csv) std::fclose(csv);
   std::printf("%s, observer %s (mode 4), bearings %s (seed %llu, sigma x %.2f); %d recorded bearings not within 3 px "
               "of a body, %d of a body or sender this filter does not estimate\n",
-              run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(seed),
+              run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(o.seed),
               sigma_scale, unassigned, external);
+  if (o.start_roe_truth) std::printf("  targets started at their true ROE (--start-roe truth)\n");
   std::printf("  own bearings fused %d of %d, remote %d of %d, %d left out (--leave-out)\n", fused_local,
               offered_local, fused_remote, offered_remote, left_out);
   std::printf("  own position after orbit %.1f (%d steps): NEES mean %.2f (3 dof), RTN beyond 3 sigma on %.1f %% of "
@@ -304,21 +326,40 @@ int run(int argc, char** argv) {
   std::vector<std::string> leave_out;
   app.add_option("--leave-out", leave_out,
                  "mode 4: leave out the bearings taken by FROM of TO, given as FROM>TO (e.g. SV2>SV3); repeatable");
+  double noise_scale = 1.0;
+  app.add_option("--noise-scale", noise_scale,
+                 "--bearings synthetic: the drawn error times this (0: noise-free; the filter keeps the 1-sigma)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  std::string start_roe = "apriori";
+  app.add_option("--start-roe", start_roe,
+                 "mode 4: the targets' initial ROE: apriori (as the observer) or truth (a-priori covariance kept)")
+      ->check(CLI::IsMember({"apriori", "truth"}))
+      ->capture_default_str();
   app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES");
   CLI11_PARSE(app, argc, argv);
 
   const std::string up_path = run_dir + "/uplink/" + observer + ".json";
   const config::ObserverUplink up = config::read_uplink(up_path);
   if (up.apriori.empty()) throw std::runtime_error(up_path + ": no ground a-priori (not a mode 1, 3 or 4 observer)");
-  if (!leave_out.empty() && up.observer.mode != 4)
-    throw std::runtime_error("--leave-out: navigation mode 4 only (" + observer + " ran mode " +
+  if ((!leave_out.empty() || start_roe != "apriori") && up.observer.mode != 4)
+    throw std::runtime_error("--leave-out and --start-roe: navigation mode 4 only (" + observer + " ran mode " +
                              std::to_string(up.observer.mode) + ")");
   if (up.observer.mode == 4) {
     config::SodTuning t4 = up.tuning.sod;
     t4.underweighting = underweighting.value_or(t4.underweighting);
     t4.adaptive_process_noise = adaptive.value_or(t4.adaptive_process_noise);
     t4.process_noise_scale = q_scale.value_or(t4.process_noise_scale);
-    return replay_mode4(run_dir, observer, up, t4, bearings_mode, seed, sigma_scale, after_orbits, csv_out, leave_out);
+    ReplayOptions ro;
+    ro.bearings_mode = bearings_mode;
+    ro.seed = seed;
+    ro.sigma_scale = sigma_scale;
+    ro.after_orbits = after_orbits;
+    ro.noise_scale = noise_scale;
+    ro.csv_out = csv_out;
+    ro.leave_out = leave_out;
+    ro.start_roe_truth = start_roe == "truth";
+    return replay_mode4(run_dir, observer, up, t4, ro);
   }
   if (up.observer.mode == 3) {
     // Remote bearings are not in the run folder (isl.csv has the outcomes,
@@ -386,7 +427,7 @@ int run(int argc, char** argv) {
         const Eigen::Vector3d e1 = (o.r_m.normalized() - u_true * u_true.dot(o.r_m.normalized())).normalized();
         const Eigen::Vector3d e2 = u_true.cross(e1);
         if (bearings_mode == "synthetic") {
-          u = (u_true + sigma * (normal(rng) * e1 + normal(rng) * e2)).normalized();
+          u = (u_true + noise_scale * sigma * (normal(rng) * e1 + normal(rng) * e2)).normalized();
         } else {  // pixel: the centroid's error, small-angle, pixel axes onto (e1, e2)
           const Eigen::Vector2d dp = p - true_px[t][ids[static_cast<std::size_t>(best)]];
           u = (u_true + dp.x() / up.camera_calibration.fx_px * e1 + dp.y() / up.camera_calibration.fy_px * e2)
