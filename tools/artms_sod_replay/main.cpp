@@ -112,7 +112,12 @@ std::map<std::int64_t, std::vector<Los>> read_all_bearings(
       Eigen::Vector3d u(m.number(r, "ux_eci"), m.number(r, "uy_eci"), m.number(r, "uz_eci"));
       const double sigma = m.number(r, "sigma_rad");
       if (mode == "synthetic") {
-        const Eigen::Vector3d u_true = (truth.at(t).at(body).r_m - truth.at(t).at(sender).r_m).normalized();
+        const auto sample = truth.find(t);
+        if (sample == truth.end() || !sample->second.count(body) || !sample->second.count(sender)) {
+          throw std::runtime_error(path + " line " + std::to_string(r + 2) + ": no truth.oem sample of " + sender +
+                                   " and " + body + " at its t_tt_ns " + std::to_string(t));
+        }
+        const Eigen::Vector3d u_true = (sample->second.at(body).r_m - sample->second.at(sender).r_m).normalized();
         const Eigen::Vector3d e1 = u_true.unitOrthogonal(), e2 = u_true.cross(e1);
         u = (u_true + noise_scale * sigma * (normal(rng) * e1 + normal(rng) * e2)).normalized();
       }
@@ -227,7 +232,8 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
           R.row(1) = b.u_eci.cross(ex);
           R.row(2) = b.u_eci;
           ++offered_local;
-          fused_local += f.update_bearing(sod::bearing_measurement_from_unit_eci(t, to, b.u_eci, b.sigma_rad * sigma_scale, R)).usable;
+          const double sigma = b.sigma_rad * sigma_scale;
+          fused_local += f.update_bearing(sod::bearing_measurement_from_unit_eci(t, to, b.u_eci, sigma, R)).usable;
         } else {
           if (from == sod::LineOfSightMeasurement::kExternal || to == sod::LineOfSightMeasurement::kExternal) {
             ++external;  // a sender or body this filter does not estimate
