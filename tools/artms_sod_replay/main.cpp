@@ -67,6 +67,16 @@ struct Bearing {
   double sigma_rad;
 };
 
+// A frame whose z axis is the line of sight (angles well conditioned).
+Eigen::Matrix3d frame_about(const Eigen::Vector3d& u_eci) {
+  Eigen::Matrix3d R;
+  const Eigen::Vector3d ex = u_eci.unitOrthogonal();
+  R.row(0) = ex;
+  R.row(1) = u_eci.cross(ex);
+  R.row(2) = u_eci;
+  return R;
+}
+
 // Bearings of every observer in the run, each given to the body (observer or
 // target) whose true pixel is within 3 px: t -> (sender, body, u_eci, sigma).
 struct Los {
@@ -165,14 +175,9 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
   const auto& c = *up.coarse_orbit;
   const astro::QnsElements obs0 = astro::qns_from_cartesian(c.x_eci);
   const Mat6 J0 = astro::jacobian_qns_from_cartesian(c.x_eci);
-  sod::SodOptions opt = fsw::sod_options(tuning);
-  if (tuning.observer_acceleration_sigma_mps2 > 0.0) {
-    opt.q_observer = opt.q_observer.cwiseMax(sod::observer_process_noise_from_acceleration(
-        obs0.a_m, obs0.i_rad, tuning.observer_acceleration_sigma_mps2, astro::orbit_period_s(obs0.a_m)));
-  }
-  sod::StateLayout layout{n, 0};
-  layout.ballistic = tuning.estimate_ballistic;
-  sod::SodFilter f(forces, up.onboard_properties(observer), up.onboard_properties(ids.front()), layout, opt);
+  const sod::StateLayout layout = fsw::sod_layout(tuning, n);
+  sod::SodFilter f(forces, up.onboard_properties(observer), up.onboard_properties(ids.front()), layout,
+                   fsw::sod_options(tuning, obs0));
   MatrixXd P = MatrixXd::Zero(layout.size(), layout.size());
   P.topLeftCorner<6, 6>() = J0 * c.P_rv * J0.transpose() + Mat6::Identity() * 1e-20;
   std::vector<astro::Roe> roes;
@@ -182,12 +187,9 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
     roes.push_back(astro::Roe::from_vector(sod::apriori_roe_drifted(ap.roe, obs0.a_m, dt)));
     P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = sod::apriori_covariance_drifted(ap.P_roe, obs0.a_m, dt);
   }
-  Eigen::VectorXd aux = Eigen::VectorXd::Zero(layout.size() - layout.aux_offset());
-  if (layout.ballistic) {
-    const dynamics::SpacecraftProperties nominal;
-    const double b = tuning.ballistic_sigma_fraction * nominal.cd * nominal.drag_area_m2 / nominal.mass_kg;
-    for (int k = 0; k < n; ++k) P(layout.ballistic_index(k), layout.ballistic_index(k)) = b * b;
-  }
+  const Eigen::VectorXd aux_var = fsw::auxiliary_prior_variance(tuning, layout);
+  const Eigen::VectorXd aux = Eigen::VectorXd::Zero(aux_var.size());
+  P.bottomRightCorner(aux_var.size(), aux_var.size()) = aux_var.asDiagonal();
   if (o.start_roe_truth) {
     // Evaluation only: the relative orbits known exactly at the start (the
     // a-priori covariance kept), to tell their error's part from the rest.
@@ -226,14 +228,11 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
         const int from = index_of(b.from), to = index_of(b.to);
         if (b.from == observer) {
           if (to < 0) continue;
-          Eigen::Matrix3d R;
-          const Eigen::Vector3d ex = b.u_eci.unitOrthogonal();
-          R.row(0) = ex;
-          R.row(1) = b.u_eci.cross(ex);
-          R.row(2) = b.u_eci;
           ++offered_local;
           const double sigma = b.sigma_rad * sigma_scale;
-          fused_local += f.update_bearing(sod::bearing_measurement_from_unit_eci(t, to, b.u_eci, sigma, R)).usable;
+          fused_local += f.update_bearing(
+                              sod::bearing_measurement_from_unit_eci(t, to, b.u_eci, sigma, frame_about(b.u_eci)))
+                             .usable;
         } else {
           if (from == sod::LineOfSightMeasurement::kExternal || to == sod::LineOfSightMeasurement::kExternal) {
             ++external;  // a sender or body this filter does not estimate
@@ -351,11 +350,12 @@ int run(int argc, char** argv) {
   if ((!leave_out.empty() || start_roe != "apriori") && up.observer.mode != 4)
     throw std::runtime_error("--leave-out and --start-roe: navigation mode 4 only (" + observer + " ran mode " +
                              std::to_string(up.observer.mode) + ")");
+  // The scenario's SOD tuning with the command line's overrides.
+  config::SodTuning tuning = up.tuning.sod;
+  tuning.underweighting = underweighting.value_or(tuning.underweighting);
+  tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
+  tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
   if (up.observer.mode == 4) {
-    config::SodTuning t4 = up.tuning.sod;
-    t4.underweighting = underweighting.value_or(t4.underweighting);
-    t4.adaptive_process_noise = adaptive.value_or(t4.adaptive_process_noise);
-    t4.process_noise_scale = q_scale.value_or(t4.process_noise_scale);
     ReplayOptions ro;
     ro.bearings_mode = bearings_mode;
     ro.seed = seed;
@@ -365,7 +365,7 @@ int run(int argc, char** argv) {
     ro.csv_out = csv_out;
     ro.leave_out = leave_out;
     ro.start_roe_truth = start_roe == "truth";
-    return replay_mode4(run_dir, observer, up, t4, ro);
+    return replay_mode4(run_dir, observer, up, tuning, ro);
   }
   if (up.observer.mode == 3) {
     // Remote bearings are not in the run folder (isl.csv has the outcomes,
@@ -445,10 +445,6 @@ int run(int argc, char** argv) {
   }
 
   // The filter, as the navigator starts it (navigator.cpp, initialise).
-  config::SodTuning tuning = up.tuning.sod;
-  tuning.underweighting = underweighting.value_or(tuning.underweighting);
-  tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
-  tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
   const sod::SodOptions opt = fsw::sod_options(tuning);
   sod::SodFilter f(forces, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{}, sod::StateLayout{n, 0},
                    opt);
@@ -500,13 +496,8 @@ int run(int argc, char** argv) {
       f.update_gnss(g);
     }
     for (const auto& b : bearings[g.t.ns_since_j2000]) {
-      // Angles in a frame whose z axis is the bearing (well conditioned).
-      Eigen::Matrix3d R;
-      const Eigen::Vector3d ex = b.u_eci.unitOrthogonal();
-      R.row(0) = ex;
-      R.row(1) = b.u_eci.cross(ex);
-      R.row(2) = b.u_eci;
       ++offered[static_cast<std::size_t>(b.target)];
+      const Eigen::Matrix3d R = frame_about(b.u_eci);
       if (f.update_bearing(sod::bearing_measurement_from_unit_eci(g.t, b.target, b.u_eci, b.sigma_rad, R)).usable)
         ++fused[static_cast<std::size_t>(b.target)];
     }

@@ -104,6 +104,32 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   return o;
 }
 
+sod::SodOptions sod_options(const config::SodTuning& t, const astro::QnsElements& observer) {
+  sod::SodOptions o = sod_options(t);
+  if (t.observer_acceleration_sigma_mps2 > 0.0) {
+    o.q_observer = o.q_observer.cwiseMax(sod::observer_process_noise_from_acceleration(
+        observer.a_m, observer.i_rad, t.observer_acceleration_sigma_mps2, astro::orbit_period_s(observer.a_m)));
+  }
+  return o;
+}
+
+sod::StateLayout sod_layout(const config::SodTuning& t, int n_targets) {
+  using TT = config::SodTuning::TimeTagEstimation;
+  sod::StateLayout layout{n_targets, 0};
+  layout.n_time_tag = t.time_tag == TT::kNone ? 0 : t.time_tag == TT::kOffset ? 1 : 2;
+  layout.ballistic = t.estimate_ballistic;
+  return layout;
+}
+
+Eigen::VectorXd auxiliary_prior_variance(const config::SodTuning& t, const sod::StateLayout& layout) {
+  Eigen::VectorXd var = Eigen::VectorXd::Zero(layout.size() - layout.aux_offset());
+  if (layout.n_time_tag > 0) var[0] = t.time_tag_sigma_s * t.time_tag_sigma_s;
+  if (layout.n_time_tag > 1) var[1] = std::pow(t.time_tag_drift_sigma_ppm * 1e-6, 2);
+  for (int k = 0; layout.ballistic && k < layout.n_targets; ++k)
+    var[layout.ballistic_index(k) - layout.aux_offset()] = std::pow(t.ballistic_sigma_fraction * nominal_ballistic_m2pkg(), 2);
+  return var;
+}
+
 bod::Options bod_options(const config::BodTuning& t) {
   bod::Options o;
   o.samples = t.samples;
@@ -369,31 +395,17 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
   Eigen::VectorXd aux;
   Eigen::MatrixXd P_aux;
   if (!filter_) {
-    using TT = config::SodTuning::TimeTagEstimation;
-    const auto& st = up_.tuning.sod;
-    sod::StateLayout layout{n, 0};
-    layout.n_time_tag = st.time_tag == TT::kNone ? 0 : st.time_tag == TT::kOffset ? 1 : 2;
-    layout.ballistic = st.estimate_ballistic;
-    // The onboard model's expected error on the observer's own orbit (an
-    // unmodelled acceleration correlated over one orbit): the process noise
-    // where it exceeds the built-in one (mode 4 has no GNSS to correct it).
-    if (st.observer_acceleration_sigma_mps2 > 0.0) {
-      sod_opt_.q_observer = sod_opt_.q_observer.cwiseMax(sod::observer_process_noise_from_acceleration(
-          obs.a_m, obs.i_rad, st.observer_acceleration_sigma_mps2, astro::orbit_period_s(obs.a_m)));
-    }
+    const sod::StateLayout layout = sod_layout(up_.tuning.sod, n);
+    // The onboard model's expected error on the observer's own orbit (mode 4
+    // has no GNSS to correct it).
+    sod_opt_ = sod_options(up_.tuning.sod, obs);
     // One nominal for every target (the filter propagates them alike): the
     // first target's uplinked properties; a target that differs is left to
     // its differential ballistic state.
     filter_.emplace(forces_, up_.onboard_properties(up_.observer.spacecraft),
                     up_.onboard_properties(target_ids_.empty() ? std::string() : target_ids_.front()), layout, sod_opt_);
-    const int na = layout.size() - layout.aux_offset();
-    aux = Eigen::VectorXd::Zero(na);
-    Eigen::VectorXd var = Eigen::VectorXd::Zero(na);
-    if (layout.n_time_tag > 0) var[0] = st.time_tag_sigma_s * st.time_tag_sigma_s;
-    if (layout.n_time_tag > 1) var[1] = std::pow(st.time_tag_drift_sigma_ppm * 1e-6, 2);
-    for (int k = 0; layout.ballistic && k < n; ++k)
-      var[layout.ballistic_index(k) - layout.aux_offset()] = std::pow(st.ballistic_sigma_fraction * nominal_ballistic_m2pkg(), 2);
-    P_aux = var.asDiagonal();
+    aux = Eigen::VectorXd::Zero(layout.size() - layout.aux_offset());
+    P_aux = auxiliary_prior_variance(up_.tuning.sod, layout).asDiagonal();
   } else {
     const int a0 = filter_->layout().aux_offset(), na = filter_->layout().size() - a0;
     aux = filter_->state().tail(na);

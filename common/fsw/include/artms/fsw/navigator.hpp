@@ -105,6 +105,17 @@ struct NavigatorOptions {
 // SOD's options from the uplinked telecommands, as the navigator builds its
 // filter (artms-sod-replay uses the same function).
 sod::SodOptions sod_options(const config::SodTuning& tuning);
+// The same, with the onboard model's expected error on the observer's own
+// orbit (tuning.observer_acceleration_sigma_mps2, an unmodelled acceleration
+// correlated over one orbit) as its process noise where that exceeds the
+// built-in one.
+sod::SodOptions sod_options(const config::SodTuning& tuning, const astro::QnsElements& observer);
+// SOD's state layout for n_targets targets and the auxiliary states the
+// tuning enables (camera time tag, differential ballistic coefficients).
+sod::StateLayout sod_layout(const config::SodTuning& tuning, int n_targets);
+// The auxiliary states' initial variances (their uplinked 1-sigma), in the
+// layout's auxiliary order.
+Eigen::VectorXd auxiliary_prior_variance(const config::SodTuning& tuning, const sod::StateLayout& layout);
 // BOD's options from the uplinked telecommands.
 bod::Options bod_options(const config::BodTuning& tuning);
 
