@@ -10,7 +10,9 @@
 #     observer's recorded bearings, no GNSS), with the recorded bearings and
 #     with synthetic white ones: own and remote bearings fused, the position
 #     error falls below half the coarse orbit's; --bearings pixel refused;
-#     --leave-out removes the bearings it names, --start-roe truth is said.
+#     --leave-out removes the bearings it names, --start-roe truth is said;
+#     target-to-target lines as consider updates by default (the scenario's
+#     tuning.sod.target_lines), as full updates with --target-lines.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -56,6 +58,9 @@ grep -q "modes 1 and 3 only" "$WORK/replay_pixel.err"
 "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings synthetic --noise-scale 0 --start-roe truth \
   > "$WORK/replay_truth.out"
 grep -q "targets started at their true ROE" "$WORK/replay_truth.out" || { cat "$WORK/replay_truth.out"; exit 1; }
+"$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --target-lines update_observer > "$WORK/replay_update.out"
+grep -q "target-to-target lines: update_observer" "$WORK/replay_update.out" || { cat "$WORK/replay_update.out"; exit 1; }
+grep -q "target-to-target lines: consider_observer" "$WORK/replay_measured.out" || { cat "$WORK/replay_measured.out"; exit 1; }
 /usr/bin/python3 - "$WORK" <<'PY'
 import json, re, sys
 work = sys.argv[1]

@@ -290,8 +290,10 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
               run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(o.seed),
               sigma_scale, unassigned, external);
   if (o.start_roe_truth) std::printf("  targets started at their true ROE (--start-roe truth)\n");
-  std::printf("  own bearings fused %d of %d, remote %d of %d, %d left out (--leave-out)\n", fused_local,
-              offered_local, fused_remote, offered_remote, left_out);
+  std::printf("  own bearings fused %d of %d, remote %d of %d, %d left out (--leave-out); target-to-target lines: %s\n",
+              fused_local, offered_local, fused_remote, offered_remote, left_out,
+              tuning.target_lines == config::SodTuning::TargetLines::kConsiderObserver ? "consider_observer"
+                                                                                       : "update_observer");
   std::printf("  own position after orbit %.1f (%d steps): NEES mean %.2f (3 dof), RTN beyond 3 sigma on %.1f %% of "
               "steps, a*di mean z^2 %.2f; final error %.0f m (RSS 1-sigma %.0f m), a*di z %+.2f\n",
               after_orbits, steps, steps ? nees_sum / steps : std::nan(""), steps ? 100.0 * beyond3 / steps : 0.0,
@@ -328,6 +330,11 @@ int run(int argc, char** argv) {
   app.add_option("--process-noise-scale", q_scale, "override tuning.sod.process_noise_scale")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--adaptive-process-noise", adaptive, "override tuning.sod.adaptive_process_noise (true/false)");
+  std::string target_lines;
+  app.add_option("--target-lines", target_lines,
+                 "override tuning.sod.target_lines: another observer's bearing of a target updates the relative orbits "
+                 "only (consider_observer) or the observer's own orbit too (update_observer)")
+      ->check(CLI::IsMember({"consider_observer", "update_observer"}));
   std::vector<std::string> leave_out;
   app.add_option("--leave-out", leave_out,
                  "mode 4: leave out the bearings taken by FROM of TO, given as FROM>TO (e.g. SV2>SV3); repeatable");
@@ -355,6 +362,10 @@ int run(int argc, char** argv) {
   tuning.underweighting = underweighting.value_or(tuning.underweighting);
   tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
   tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
+  if (!target_lines.empty()) {
+    tuning.target_lines = target_lines == "consider_observer" ? config::SodTuning::TargetLines::kConsiderObserver
+                                                              : config::SodTuning::TargetLines::kUpdateObserver;
+  }
   if (up.observer.mode == 4) {
     ReplayOptions ro;
     ro.bearings_mode = bearings_mode;

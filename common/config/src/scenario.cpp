@@ -1366,7 +1366,7 @@ class Parser {
              {"period", "bearing_sigma_arcsec", "eps_assign", "eps_ambig",
               "max_steps_without_update", "max_large_residuals", "underweighting",
               "adaptive_process_noise", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
-              "ballistic", "observer_acceleration_sigma_mps2"});
+              "ballistic", "observer_acceleration_sigma_mps2", "target_lines"});
       if (sm.ok()) {
         duration_field(ctx_, sm, "period", t.sod.period_s, false);
         number_field(ctx_, sm, "bearing_sigma_arcsec", t.sod.bearing_sigma_arcsec,
@@ -1391,6 +1391,13 @@ class Parser {
         number_field(ctx_, sm, "nis_false_alarm", t.sod.nis_false_alarm, Range{0.0, 0.5, true, false});
         number_field(ctx_, sm, "observer_acceleration_sigma_mps2", t.sod.observer_acceleration_sigma_mps2,
                      Range{0.0, 1e-3, true, true}, "m/s^2");
+        if (const Val* lv = sm.find("target_lines")) {
+          const auto e = read_string(ctx_, *lv, "consider_observer or update_observer");
+          using L = SodTuning::TargetLines;
+          if (e && *e == "consider_observer") t.sod.target_lines = L::kConsiderObserver;
+          else if (e && *e == "update_observer") t.sod.target_lines = L::kUpdateObserver;
+          else if (e) ctx_.error(*lv, "expected consider_observer or update_observer, got " + describe(lv->node));
+        }
         if (const Val* tv = sm.find("time_tag")) {
           Map tm(ctx_, *tv, {"estimate", "sigma_s", "drift_sigma_ppm"});
           if (tm.ok()) {

@@ -182,7 +182,10 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"time_tag_drift_sigma_ppm", u.tuning.sod.time_tag_drift_sigma_ppm},
           {"estimate_ballistic", u.tuning.sod.estimate_ballistic},
           {"ballistic_sigma_fraction", u.tuning.sod.ballistic_sigma_fraction},
-          {"observer_acceleration_sigma_mps2", u.tuning.sod.observer_acceleration_sigma_mps2}}}}},
+          {"observer_acceleration_sigma_mps2", u.tuning.sod.observer_acceleration_sigma_mps2},
+          {"target_lines", u.tuning.sod.target_lines == SodTuning::TargetLines::kConsiderObserver
+                               ? "consider_observer"
+                               : "update_observer"}}}}},
       {"crosslink",
        {{"enabled", u.crosslink_enabled}, {"period_s", u.isl_period_s},
         {"latency_s", u.isl_latency_s}, {"swarm_max_cadence_s", u.swarm_max_cadence_s},
@@ -314,6 +317,10 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.estimate_ballistic = sod.at("estimate_ballistic").get<bool>();
     u.tuning.sod.ballistic_sigma_fraction = sod.at("ballistic_sigma_fraction").get<double>();
     u.tuning.sod.observer_acceleration_sigma_mps2 = sod.value("observer_acceleration_sigma_mps2", 0.0);
+    const std::string lines = sod.value("target_lines", std::string("consider_observer"));
+    if (lines == "consider_observer") u.tuning.sod.target_lines = SodTuning::TargetLines::kConsiderObserver;
+    else if (lines == "update_observer") u.tuning.sod.target_lines = SodTuning::TargetLines::kUpdateObserver;
+    else throw std::runtime_error(path + ": tuning.sod.target_lines must be consider_observer or update_observer, got " + lines);
     const auto& c = j.at("crosslink");
     u.crosslink_enabled = c.at("enabled").get<bool>();
     u.isl_period_s = c.at("period_s").get<double>();

@@ -529,6 +529,16 @@ TEST(ScenarioValidation, CoarseOrbitOnlyInMode4AndPositive) {
                                    "  - spacecraft: SV2\n    mode: 4\n";
   expect_one("coarse_zero.yaml", bad, 13, "observers[0].coarse_orbit.sigma_roe_m", "out of range");
 }
+TEST(ScenarioLoad, TargetLinesDefaultToConsiderTheObserverAndAreNamedWhenWrong) {
+  using L = SodTuning::TargetLines;
+  EXPECT_EQ(load_scenario(write_file("lines_default.yaml", kValid)).tuning.sod.target_lines, L::kConsiderObserver);
+  const Scenario s =
+      load_scenario(write_file("lines_update.yaml", kValid + "tuning:\n  sod: {target_lines: update_observer}\n"));
+  EXPECT_EQ(s.tuning.sod.target_lines, L::kUpdateObserver);
+  expect_one("lines_bad.yaml", kValid + "tuning:\n  sod: {target_lines: both}\n", 13, "tuning.sod.target_lines",
+             "expected consider_observer or update_observer");
+}
+
 TEST(ScenarioValidation, Mode2WithATargetListLoads) {
   const std::string path =
       write_file("mode2.yaml", kValid + "    mode: 2\n    targets: [SV2]\n  - spacecraft: SV2\n    mode: 3\n");

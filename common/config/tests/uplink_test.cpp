@@ -22,6 +22,7 @@ TEST(Uplink, RoundTripsAndCarriesNoOrbits) {
   EXPECT_DOUBLE_EQ(b.tuning.sod.underweighting, 0.5);
   EXPECT_FALSE(b.tuning.sod.adaptive_process_noise);
   EXPECT_DOUBLE_EQ(b.tuning.sod.process_noise_scale, 0.001);
+  EXPECT_EQ(b.tuning.sod.target_lines, SodTuning::TargetLines::kConsiderObserver);
   EXPECT_EQ(b.force_model.gravity_degree, 10);
   EXPECT_EQ(b.swarm_ids, (std::vector<std::string>{"SV4", "SV2", "SV3"}));
   // No truth: the file mentions no orbit elements.

@@ -100,6 +100,7 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   o.q_time_tag_offset_s2ps = 1e-6 / 86400.0;
   o.q_time_tag_drift_ps = 1e-12 / 86400.0;
   o.q_ballistic_m4pkg2ps = std::pow(t.ballistic_sigma_fraction * nominal_ballistic_m2pkg(), 2) / 86400.0;
+  o.target_to_target_consider_observer = t.target_lines == config::SodTuning::TargetLines::kConsiderObserver;
   o.validate();
   return o;
 }

@@ -169,6 +169,9 @@ struct SodFilter::MeasurementModel {
   // Components of z that are angles (residuals wrapped).
   std::vector<bool> angle;
   double underweighting = 0.0;  // beta (SodOptions::bearing_underweighting)
+  // The first `consider` states are consider parameters (Schmidt-Kalman):
+  // their gain rows are zero.
+  int consider = 0;
 };
 
 SodFilter::SodFilter(const dynamics::ForceModel& forces,
@@ -543,9 +546,20 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
     if (target >= 0) ++counters_[target].rejected;
     return s;
   }
-  const MatrixXd K = llt_s.solve(Pxz.transpose()).transpose();  // Pxz S^-1
+  MatrixXd K = llt_s.solve(Pxz.transpose()).transpose();  // Pxz S^-1
+  MatrixXd P_post;
+  if (model.consider > 0) {
+    // Schmidt-Kalman: P+ = P - K Pxz^T - Pxz K^T + K S K^T with the consider
+    // rows of K zero (Joseph form of a suboptimal gain; the other blocks are
+    // those of the optimal update, the consider block unchanged).
+    K.topRows(model.consider).setZero();
+    const MatrixXd KPzx = K * Pxz.transpose();
+    P_post = P_ - KPzx - KPzx.transpose() + K * S * K.transpose();
+  } else {
+    P_post = P_ - K * S * K.transpose();
+  }
   const VectorXd dx = K * s.prefit_residual;
-  if (!store(x_ + dx, P_ - K * S * K.transpose())) {
+  if (!store(x_ + dx, P_post)) {
     s.why = "posterior covariance not positive definite (or state not finite)";
     return s;
   }
@@ -639,6 +653,9 @@ UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas
   model.cutoff = hi >= 0 ? layout_.target_offset(hi) + StateLayout::kBlock : StateLayout::kBlock;
   model.angle = {true, true};
   model.underweighting = options_.bearing_underweighting;
+  if (options_.target_to_target_consider_observer && meas.from >= 0 && meas.to >= 0) {
+    model.consider = StateLayout::kBlock;
+  }
   const int from = meas.from, to = meas.to;
   const Vec3 r_ext = meas.from_r_eci_m;
   model.h = [=](const VectorXd& xs) -> VectorXd {

@@ -4,6 +4,8 @@
 // target) and bearings from an external remote observer close the loop.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+
 #include "artms/sod/sod_filter.hpp"
 #include "sod_scenario.hpp"
 
@@ -22,6 +24,17 @@ const TimeTT kT0 = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
 SodFilter make_filter(int n_targets) {
   return SodFilter(j2_forces(), dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{},
                    StateLayout{n_targets, 0}, SodOptions{});
+}
+
+// Target 0's true line of sight to target 1 at kT0.
+L first_to_second(const Truth& truth, double sigma_arcsec) {
+  L m;
+  m.t = kT0;
+  m.from = 0;
+  m.to = 1;
+  m.los_eci = truth.target_eci(1).r_m - truth.target_eci(0).r_m;
+  m.sigma_rad = sigma_arcsec * astro::kArcsecToRad;
+  return m;
 }
 
 TEST(SodLineOfSight, ObserverToTargetMatchesUpdateBearing) {
@@ -58,12 +71,7 @@ TEST(SodLineOfSight, DryRunLeavesTheFilterAlone) {
   const auto g = shifted_initial_guess(observer_at_start(), a_roe, 0.05, 100.0);
   SodFilter f = make_filter(2);
   f.initialize(kT0, g.x, g.P);
-  L m;
-  m.t = kT0;
-  m.from = 0;
-  m.to = 1;
-  m.los_eci = truth.target_eci(1).r_m - truth.target_eci(0).r_m;
-  m.sigma_rad = 20 * astro::kArcsecToRad;
+  L m = first_to_second(truth, 20.0);
   const Eigen::VectorXd x0 = f.state();
   const Eigen::MatrixXd P0 = f.covariance();
   const auto s = f.update_line_of_sight(m, true);
@@ -126,6 +134,56 @@ TEST(SodLineOfSight, RemoteBearingsBetweenTargetsAndFromAnExternalObserverConver
     EXPECT_LT(std::abs(e0[i]), 3.0 * f.a_roe_sigma_m(0)[i] + 1.0) << i;
     EXPECT_LT(std::abs(e1[i]), 3.0 * f.a_roe_sigma_m(1)[i] + 1.0) << i;
   }
+}
+
+TEST(SodLineOfSight, TargetToTargetLineKeepsTheObserverAsAConsiderParameter) {
+  // SodOptions::target_to_target_consider_observer: a line of sight between
+  // two targets updates their relative orbits and leaves the observer's
+  // orbit and its covariance block as they were (Schmidt-Kalman); its
+  // posterior covariance is no smaller than the full update's. Lines of
+  // sight that involve the observer still update it. The observer's orbit is
+  // uncertain by kilometres here (mode 4's coarse orbit).
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  auto g = shifted_initial_guess(observer_at_start(), a_roe, 0.05, 100.0);
+  const double a = observer_at_start().a_m;
+  g.P.diagonal().head<6>() << 50.0 * 50.0, std::pow(500.0 / a, 2), std::pow(500.0 / a, 2), std::pow(2000.0 / a, 2),
+      std::pow(2000.0 / a, 2), std::pow(3000.0 / a, 2);
+  SodOptions consider;
+  consider.target_to_target_consider_observer = true;
+  SodFilter full = make_filter(2);
+  SodFilter cons(j2_forces(), dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{}, StateLayout{2, 0},
+                 consider);
+  full.initialize(kT0, g.x, g.P);
+  cons.initialize(kT0, g.x, g.P);
+  const L m = first_to_second(truth, 5.0);
+  const auto uf = full.update_line_of_sight(m), uc = cons.update_line_of_sight(m);
+  ASSERT_TRUE(uf.usable && uc.usable) << uf.why << " / " << uc.why;
+  EXPECT_NEAR(uf.nis, uc.nis, 1e-12 * std::max(1.0, uf.nis));  // same prediction
+  // The observer: untouched by the consider update, moved by the full one.
+  EXPECT_EQ(cons.state().head<6>(), g.x.head<6>());
+  // In metres (a, and a times the angles): the full update shrinks the
+  // observer's covariance, the consider update leaves it exactly.
+  Eigen::VectorXd to_m = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(g.x.size()), a);
+  to_m[0] = 1.0;
+  const Eigen::MatrixXd S = to_m.asDiagonal();
+  const Eigen::MatrixXd P0 = S * g.P * S, Pc = S * cons.covariance() * S, Pf = S * full.covariance() * S;
+  EXPECT_EQ(Pc.topLeftCorner(6, 6), P0.topLeftCorner(6, 6));
+  EXPECT_LT(Pf.topLeftCorner(6, 6).trace(), 0.99 * P0.topLeftCorner(6, 6).trace());
+  // The relative orbits learn in both; the consider posterior is the larger.
+  const int n = static_cast<int>(g.x.size());
+  EXPECT_LT(Pc.bottomRightCorner(n - 6, n - 6).trace(), 0.99 * P0.bottomRightCorner(n - 6, n - 6).trace());
+  const Eigen::MatrixXd D = Pc - Pf;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (D + D.transpose()));
+  EXPECT_GT(eig.eigenvalues().minCoeff(), -1e-9 * Pf.diagonal().maxCoeff());
+  // Observer -> target: the observer is updated as before.
+  L own = m;
+  own.from = L::kObserver;
+  own.to = 0;
+  own.los_eci = truth.target_eci(0).r_m - truth.observer_eci().r_m;
+  ASSERT_TRUE(cons.update_line_of_sight(own).usable);
+  EXPECT_NE(cons.state().head<6>(), g.x.head<6>());
 }
 
 TEST(SodUnderweighting, LimitsTheCollapseOfAWidePriorAndIsValidated) {

@@ -202,6 +202,13 @@ struct SodTuning {
   // observer_process_noise_from_acceleration). 0: the built-in only (GNSS
   // corrects the orbit); mode 4 needs the budget (docs/sod.md).
   double observer_acceleration_sigma_mps2 = 0.0;
+  // A remote observer's bearing of another target (a line of sight between
+  // two bodies other than this observer): kConsiderObserver updates the
+  // relative orbits only and keeps the observer's own orbit as a consider
+  // parameter (sod::SodOptions::target_to_target_consider_observer,
+  // docs/sod.md); kUpdateObserver updates every state.
+  enum class TargetLines { kConsiderObserver, kUpdateObserver };
+  TargetLines target_lines = TargetLines::kConsiderObserver;
 };
 struct ArtmsTuning {
   ImpTuning imp;

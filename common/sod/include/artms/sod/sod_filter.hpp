@@ -117,6 +117,16 @@ struct SodOptions {
   // a-priori, a target seen for the first time). 0 disables.
   double bearing_underweighting = 0.0;
   double gnss_gate_mahalanobis = 6.0;
+  // A line of sight between two targets (another observer's bearing of a
+  // third spacecraft) updates the relative orbits only: the observer's own
+  // orbit enters it as a consider parameter (Schmidt-Kalman update: its
+  // uncertainty is in the innovation covariance and the cross-covariances,
+  // its estimate and variance are left as they were). Such a line of sight
+  // fixes the observer's orbit plane only through the ranges of the targets
+  // (to first order a rotation of the observer's plane is matched by the
+  // targets' relative inclination vectors), and taking that from bearings
+  // while the ranges converge made mode 4 over-confident (docs/sod.md).
+  bool target_to_target_consider_observer = false;
   HealthOptions health;
 
   // Throws std::invalid_argument naming the offending field.
