@@ -94,6 +94,28 @@ TEST(Uplink, RoundTripsTheCoarseOrbitOfMode4) {
   EXPECT_FALSE(read_uplink(path).coarse_orbit.has_value());
 }
 
+TEST(Uplink, TargetLinesRoundTripAndAnUnknownValueIsNamed) {
+  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  ObserverUplink u = make_uplink(s, "SV4");
+  u.tuning.sod.target_lines = SodTuning::TargetLines::kUpdateObserver;
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_lines.json";
+  write_uplink(u, path);
+  EXPECT_EQ(read_uplink(path).tuning.sod.target_lines, SodTuning::TargetLines::kUpdateObserver);
+  std::ifstream in(path);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "\"update_observer\"";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.replace(text.find(key), key.size(), "\"sometimes\"");
+  std::ofstream(path) << text;
+  try {
+    (void)read_uplink(path);
+    ADD_FAILURE() << "an unknown tuning.sod.target_lines was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("tuning.sod.target_lines"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Uplink, MalformedFileNamesFileAndKey) {
   const std::string path = ::testing::TempDir() + "/bad_uplink.json";
   std::ofstream(path) << R"({"scenario": "x", "epoch_tt_ns": "soon"})";
