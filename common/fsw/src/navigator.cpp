@@ -94,6 +94,10 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   // Five times the quantile: the onboard model's own absolute error (10x10
   // gravity against the world's) already doubles the GNSS NIS; a burn's does not stop there.
   o.health.gnss_nis_max_mean = 5.0 * sod::chi2_quantile(6 * 10, 1.0 - t.nis_false_alarm) / 10.0;
+  // The mean-shift test of the same fixes, tested at every fix: its false-alarm
+  // probability is the scenario's per day of one-minute fixes (Bonferroni).
+  o.health.gnss_bias_window = t.nis_window > 0 ? 10 : 0;
+  o.health.gnss_bias_max = sod::chi2_quantile(6, 1.0 - t.nis_false_alarm / 1440.0);
   // Auxiliary random walks: the offset wanders by 1 ms and the drift by 1 ppm
   // per day; a target's effective ballistic coefficient (the density's
   // day-to-day error times Cd A/m) by its initial 1-sigma per day.

@@ -72,6 +72,9 @@ void SodOptions::validate() const {
   require(health.gnss_nis_window >= 0, "health.gnss_nis_window", "must be >= 0 (0 disables)");
   require(std::isfinite(health.gnss_nis_max_mean) && health.gnss_nis_max_mean > 0.0, "health.gnss_nis_max_mean",
           "must be finite and > 0");
+  require(health.gnss_bias_window >= 0, "health.gnss_bias_window", "must be >= 0 (0 disables)");
+  require(std::isfinite(health.gnss_bias_max) && health.gnss_bias_max > 0.0, "health.gnss_bias_max",
+          "must be finite and > 0");
   require(adaptive.forgetting > 0.0 && adaptive.forgetting < 1.0, "adaptive.forgetting",
           "must be in (0, 1)");
   require(std::isfinite(adaptive.floor_factor) && adaptive.floor_factor >= 0.0 &&
@@ -199,6 +202,7 @@ SodFilter::SodFilter(const dynamics::ForceModel& forces,
   recent_nis_t_.assign(layout_.n_targets, std::vector<TimeTT>(static_cast<std::size_t>(options_.health.nis_window)));
   recent_nis_count_.assign(layout_.n_targets, 0);
   gnss_nis_.assign(static_cast<std::size_t>(options_.health.gnss_nis_window), 0.0);
+  gnss_white_rtn_.assign(static_cast<std::size_t>(options_.health.gnss_bias_window), Vec6::Zero());
 }
 
 VectorXd SodFilter::make_state(const QnsElements& observer, const std::vector<Roe>& roe,
@@ -251,6 +255,7 @@ void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
   rejected_total_ = 0;
   recent_nis_count_.assign(layout_.n_targets, 0);
   gnss_nis_count_ = 0;
+  gnss_white_count_ = 0;
   initialized_ = true;
 }
 
@@ -534,6 +539,23 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
   if (target < 0 && options_.health.gnss_nis_window > 0) {
     gnss_nis_[static_cast<std::size_t>(gnss_nis_count_ % options_.health.gnss_nis_window)] = s.nis;
     ++gnss_nis_count_;
+  }
+  if (target < 0 && options_.health.gnss_bias_window > 0) {
+    // The innovation and its covariance in the predicted fix's RTN frame, whitened.
+    astro::StateVector predicted;
+    predicted.r_m = z_mean.head<3>();
+    predicted.v_mps = z_mean.tail<3>();
+    const Mat3 R_rtn = astro::R_rtn_from_eci(predicted);
+    MatrixXd T = MatrixXd::Zero(6, 6);
+    T.topLeftCorner<3, 3>() = R_rtn;
+    T.bottomRightCorner<3, 3>() = R_rtn;
+    const MatrixXd S_rtn = T * S * T.transpose();
+    const Eigen::LLT<MatrixXd> llt_rtn(0.5 * (S_rtn + S_rtn.transpose()));
+    if (llt_rtn.info() == Eigen::Success) {
+      const VectorXd w = llt_rtn.matrixL().solve(T * s.prefit_residual);
+      gnss_white_rtn_[static_cast<std::size_t>(gnss_white_count_ % options_.health.gnss_bias_window)] = w;
+      ++gnss_white_count_;
+    }
   }
   // Health check (3): successive large pre-fit residuals (gated ones included).
   int& large = target >= 0 ? counters_[target].consecutive_large_residuals : consecutive_large_gnss_;
@@ -825,6 +847,12 @@ HealthReport SodFilter::health() const {
     why.precision(3);
     why << "mean NIS " << nis << " of the last " << h.gnss_nis_window << " GNSS fixes above " << h.gnss_nis_max_mean;
     r.filter = {HealthCondition::kInconsistent, why.str()};
+  } else if (const double b = recent_gnss_bias_statistic(); std::isfinite(b) && b > h.gnss_bias_max) {
+    std::ostringstream why;
+    why.precision(3);
+    why << "the last " << h.gnss_bias_window << " GNSS innovations keep one sign (W |mean whitened innovation|^2 "
+        << b << " above " << h.gnss_bias_max << ")";
+    r.filter = {HealthCondition::kInconsistent, why.str()};
   }
   for (int k = 0; k < layout_.n_targets; ++k) {
     const Vec6 a_roe = a * x_.segment<6>(layout_.target_offset(k));
@@ -929,7 +957,18 @@ double SodFilter::recent_mean_gnss_nis() const {
   return sum / w;
 }
 
-void SodFilter::clear_gnss_nis() { gnss_nis_count_ = 0; }
+double SodFilter::recent_gnss_bias_statistic() const {
+  const int w = options_.health.gnss_bias_window;
+  if (w <= 0 || gnss_white_count_ < w) return kNaN;
+  Vec6 sum = Vec6::Zero();
+  for (const Vec6& v : gnss_white_rtn_) sum += v;
+  return sum.squaredNorm() / w;  // W |sum / W|^2
+}
+
+void SodFilter::clear_gnss_nis() {
+  gnss_nis_count_ = 0;
+  gnss_white_count_ = 0;
+}
 
 double SodFilter::recent_nis_span_s(int target) const {
   const int w = options_.health.nis_window;

@@ -83,6 +83,15 @@ struct HealthOptions {
   // observer's orbit left its model (an unplanned maneuver). 0 disables.
   int gnss_nis_window = 10;
   double gnss_nis_max_mean = 10.1;
+  // And a persistent offset of the observer's GNSS innovations: each rotated
+  // into the predicted RTN frame and whitened (w = L^-1 nu, S = L L^T), the
+  // mean of the last gnss_bias_window of them; W |mean w|^2 is chi2(6) while
+  // the model holds (a GLR test for a mean shift; Willsky and Jones 1976).
+  // A filter absorbs an unplanned burn over tens of minutes, so its mean NIS
+  // hardly rises while its innovations keep one sign for that long.
+  // Above gnss_bias_max the observer's orbit left its model. 0 disables.
+  int gnss_bias_window = 0;
+  double gnss_bias_max = 43.3;
 };
 
 struct SodOptions {
@@ -328,6 +337,9 @@ class SodFilter {
   // Mean NIS of the last health.gnss_nis_window GNSS fixes (NaN until full),
   // and clearing that window (after the navigator answered check 5).
   [[nodiscard]] double recent_mean_gnss_nis() const;
+  // W |mean w|^2 of the last health.gnss_bias_window whitened RTN GNSS
+  // innovations (NaN until full); cleared with the NIS window.
+  [[nodiscard]] double recent_gnss_bias_statistic() const;
   void clear_gnss_nis();
   // Time span of the target's NIS window (s; NaN until full).
   [[nodiscard]] double recent_nis_span_s(int target) const;
@@ -412,6 +424,8 @@ class SodFilter {
   std::vector<int> recent_nis_count_;
   std::vector<double> gnss_nis_;
   int gnss_nis_count_ = 0;
+  std::vector<Vec6> gnss_white_rtn_;  // ring buffer, health.gnss_bias_window
+  int gnss_white_count_ = 0;
   std::vector<HealthStatus> bod_status_;
   std::vector<std::optional<BodEstimate>> last_bod_;
   int steps_without_update_ = 0;
