@@ -539,6 +539,15 @@ TEST(ScenarioLoad, TargetLinesDefaultToConsiderTheObserverAndAreNamedWhenWrong) 
              "expected consider_observer or update_observer");
 }
 
+TEST(ScenarioLoad, BodFitRatioDefaultsAndIsNamedWhenOutOfRange) {
+  EXPECT_DOUBLE_EQ(load_scenario(write_file("fit_default.yaml", kValid)).tuning.bod.max_fit_ratio, 1.5);
+  EXPECT_DOUBLE_EQ(
+      load_scenario(write_file("fit_3.yaml", kValid + "tuning:\n  bod: {max_fit_ratio: 3}\n")).tuning.bod.max_fit_ratio,
+      3.0);
+  expect_one("fit_bad.yaml", kValid + "tuning:\n  bod: {max_fit_ratio: 0.5}\n", 13, "tuning.bod.max_fit_ratio",
+             "out of range");
+}
+
 TEST(ScenarioValidation, Mode2WithATargetListLoads) {
   const std::string path =
       write_file("mode2.yaml", kValid + "    mode: 2\n    targets: [SV2]\n  - spacecraft: SV2\n    mode: 3\n");

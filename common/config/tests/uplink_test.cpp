@@ -116,6 +116,22 @@ TEST(Uplink, TargetLinesRoundTripAndAnUnknownValueIsNamed) {
   }
 }
 
+TEST(Uplink, BodFitRatioRoundTripsAndAnOlderUplinkReadsTheDefault) {
+  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  ObserverUplink u = make_uplink(s, "SV4");
+  u.tuning.bod.max_fit_ratio = 2.25;
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_fit.json";
+  write_uplink(u, path);
+  EXPECT_DOUBLE_EQ(read_uplink(path).tuning.bod.max_fit_ratio, 2.25);
+  std::ifstream in(path);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "\"max_fit_ratio\":";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.replace(text.find(key), key.size(), "\"unknown_key_of_a_later_version\":");
+  std::ofstream(path) << text;
+  EXPECT_DOUBLE_EQ(read_uplink(path).tuning.bod.max_fit_ratio, BodTuning{}.max_fit_ratio);
+}
+
 TEST(Uplink, MalformedFileNamesFileAndKey) {
   const std::string path = ::testing::TempDir() + "/bad_uplink.json";
   std::ofstream(path) << R"({"scenario": "x", "epoch_tt_ns": "soon"})";

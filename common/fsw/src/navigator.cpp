@@ -62,6 +62,12 @@ Eigen::Vector3d los_eci_of(const Eigen::VectorXd& s) {
 
 }  // namespace
 
+// BOD's expected post-fit misfit beyond IMP's noise, per bearing angle: the
+// mean J2 model and the attitude's field-dependent errors. In the flight-like
+// world (nst camera, starling_pse_flight.yaml seed 7) the post-fit RMS is
+// 3.9-4.5" against IMP's RMS 1-sigma of 3.6": ~2" in quadrature (docs/bod.md).
+constexpr double kBodExpectedMisfit_rad = 2.0 * astro::kArcsecToRad;
+
 // 1-sigma per axis of the unknown manoeuvre that inflates a target whose
 // bearings stopped fitting (docs/sod.md, health check 5): 2 cm/s per unit of
 // the RMS normalised innovation, between 2 cm/s and 1 m/s.
@@ -482,7 +488,7 @@ void Navigator::process(const Event& e, const imp::Samus& samus) {
     // Bounded: the latest batch_orbits orbits (at the longest LEO period) of every track.
     const double keep_s = up_.tuning.bod.batch_orbits * 6400.0;
     auto& h = history_[e.track];
-    h.push_back({e.t, e.u_eci, e.q_cam_from_eci, e.segment});
+    h.push_back({e.t, e.u_eci, e.q_cam_from_eci, e.segment, e.imp_sigma_rad});
     while (!h.empty() && astro::seconds_between(h.front().t, e.t) > keep_s) h.pop_front();
     if (history_.size() > 64) {
       std::erase_if(history_, [&](const auto& kv) {
@@ -1003,9 +1009,11 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     std::vector<bod::Measurement> batch;
     astro::TimeTT last = h.front().t;
     astro::TimeTT first = t_est;
+    double sum_sigma2 = 0.0;
     for (const auto& b : h) {
       if (b.t > t_est || (after && b.t < after_t)) continue;
       first = std::min(first, b.t);
+      sum_sigma2 += b.sigma_rad * b.sigma_rad;
       // The time tags as SOD knows them: less its estimated offset (and drift).
       batch.push_back({b.t.plus_seconds(-time_tag_offset_at(b.t)), b.u_eci, b.q_cam_from_eci.toRotationMatrix()});
       last = std::max(last, b.t);
@@ -1093,8 +1101,27 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     if (bound != tracks_.end() && bound->second.target >= 0) {
       // Health check (1) of the track's target.
       const int k = bound->second.target;
-      last_bod_[static_cast<std::size_t>(k)] = est;
       const double d2 = bod_distance2(k, b);
+      // BOD's fit against what it should be: IMP's RMS 1-sigma of the batch's
+      // bearings with BOD's own expected misfit (kBodExpectedMisfit_rad). A
+      // post-fit RMS above max_fit_ratio x that means the mean J2 model misses
+      // this target's motion (unmodelled drag, a manoeuvre inside the batch)
+      // and its estimate is biased beyond its covariance (docs/bod.md). It is
+      // then neither a reason to re-initialise SOD nor evidence that SOD is right.
+      const double sigma_rms = std::sqrt(sum_sigma2 / static_cast<double>(batch.size()));
+      const double expected_rms = std::hypot(sigma_rms, kBodExpectedMisfit_rad);
+      if (sigma_rms > 0.0 && r.residual_rms_rad > up_.tuning.bod.max_fit_ratio * expected_rms) {
+        decided(k, "not used for health check 1: the mean model does not fit the bearings", d2);
+        std::snprintf(buf, sizeof buf,
+                      "not used for health check 1 of target %s: post-fit RMS %.1f arcsec = %.2f x the expected "
+                      "%.1f (max %.2f), the mean model misses its motion (d2 %.1f); ",
+                      target_ids_[static_cast<std::size_t>(k)].c_str(), r.residual_rms_rad / astro::kArcsecToRad,
+                      r.residual_rms_rad / expected_rms, expected_rms / astro::kArcsecToRad,
+                      up_.tuning.bod.max_fit_ratio, d2);
+        messages_.push_back(std::string(head) + buf + r.brief());
+        continue;
+      }
+      last_bod_[static_cast<std::size_t>(k)] = est;  // the latest usable BOD: the source of re-initialisations
       if (d2 > chi2) {
         std::snprintf(buf, sizeof buf,
                       "unhealthy (health check 1: squared Mahalanobis distance %.1f between BOD and SOD > %.2f): "

@@ -166,6 +166,13 @@ struct BodTuning {
   double max_sigma_range_fraction = 0.3;  // uncertainty tolerance of a usable result
   double max_residual_arcsec = 15.0;      // post-fit RMS tolerance (a few times IMP's ~3")
   double check_chi2 = 50.0;          // health check 1: squared Mahalanobis distance (docs/bod.md: why not chi2(6) 99.9 % = 22.5)
+  // Health check 1 takes a BOD estimate only when its post-fit RMS is at most
+  // this times the RMS it should have (IMP's RMS 1-sigma of the batch's
+  // bearings and BOD's own expected misfit of 2", in quadrature): beyond,
+  // BOD's mean J2 model misses the target's motion (unmodelled drag, a
+  // manoeuvre inside the batch) and its estimate is biased beyond its
+  // covariance (docs/bod.md).
+  double max_fit_ratio = 1.5;
   // After health check 5 flags a target, its first BOD batch made only of
   // later bearings re-initialises it whatever check 1 says (docs/bod.md:
   // off by default, measured worse in the flight-like world).

@@ -295,6 +295,7 @@ class Navigator {
     Eigen::Vector3d u_eci = Eigen::Vector3d::UnitZ();
     Eigen::Quaterniond q_cam_from_eci = Eigen::Quaterniond::Identity();
     int segment = 1;
+    double sigma_rad = 0.0;  // IMP's 1-sigma of the bearing
   };
   // A BOD estimate: the target's mean ROE and covariance at t, with the
   // observer's mean elements they are relative to.
