@@ -3,9 +3,26 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iterator>
+#include <string>
 
 namespace artms::config {
 namespace {
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Replaces the first `from` in the file by `to`; false when `from` is not there.
+bool replace_in_file(const std::string& path, const std::string& from, const std::string& to) {
+  std::string text = read_text(path);
+  const auto at = text.find(from);
+  if (at == std::string::npos) return false;
+  text.replace(at, from.size(), to);
+  std::ofstream(path) << text;
+  return true;
+}
 
 TEST(Uplink, RoundTripsAndCarriesNoOrbits) {
   const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
@@ -26,8 +43,7 @@ TEST(Uplink, RoundTripsAndCarriesNoOrbits) {
   EXPECT_EQ(b.force_model.gravity_degree, 10);
   EXPECT_EQ(b.swarm_ids, (std::vector<std::string>{"SV4", "SV2", "SV3"}));
   // No truth: the file mentions no orbit elements.
-  std::ifstream in(path);
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string text = read_text(path);
   for (const char* forbidden : {"roe", "a_km", "qns", "kepler", "r_eci"}) {
     EXPECT_EQ(text.find(forbidden), std::string::npos) << forbidden;
   }
@@ -101,12 +117,7 @@ TEST(Uplink, TargetLinesRoundTripAndAnUnknownValueIsNamed) {
   const std::string path = ::testing::TempDir() + "/uplink_sv4_lines.json";
   write_uplink(u, path);
   EXPECT_EQ(read_uplink(path).tuning.sod.target_lines, SodTuning::TargetLines::kUpdateObserver);
-  std::ifstream in(path);
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::string key = "\"update_observer\"";
-  ASSERT_NE(text.find(key), std::string::npos);
-  text.replace(text.find(key), key.size(), "\"sometimes\"");
-  std::ofstream(path) << text;
+  ASSERT_TRUE(replace_in_file(path, "\"update_observer\"", "\"sometimes\""));
   try {
     (void)read_uplink(path);
     ADD_FAILURE() << "an unknown tuning.sod.target_lines was accepted";
@@ -123,12 +134,7 @@ TEST(Uplink, BodFitRatioRoundTripsAndAnOlderUplinkReadsTheDefault) {
   const std::string path = ::testing::TempDir() + "/uplink_sv4_fit.json";
   write_uplink(u, path);
   EXPECT_DOUBLE_EQ(read_uplink(path).tuning.bod.max_fit_ratio, 2.25);
-  std::ifstream in(path);
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::string key = "\"max_fit_ratio\":";
-  ASSERT_NE(text.find(key), std::string::npos);
-  text.replace(text.find(key), key.size(), "\"unknown_key_of_a_later_version\":");
-  std::ofstream(path) << text;
+  ASSERT_TRUE(replace_in_file(path, "\"max_fit_ratio\":", "\"unknown_key_of_a_later_version\":"));
   EXPECT_DOUBLE_EQ(read_uplink(path).tuning.bod.max_fit_ratio, BodTuning{}.max_fit_ratio);
 }
 

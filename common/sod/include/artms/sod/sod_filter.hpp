@@ -91,7 +91,7 @@ struct HealthOptions {
   // hardly rises while its innovations keep one sign for that long.
   // Above gnss_bias_max the observer's orbit left its model. 0 disables.
   int gnss_bias_window = 0;
-  double gnss_bias_max = 43.3;
+  double gnss_bias_max = 43.3;  // chi2(6) at 1 - 1e-7
 };
 
 struct SodOptions {
