@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "artms/astro/constants.hpp"
 #include "artms/astro/elements.hpp"
@@ -194,6 +195,7 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   last_fit_t_.assign(target_ids_.size(), up.epoch);
   last_bod_.resize(target_ids_.size());
   manoeuvre_flagged_.assign(target_ids_.size(), std::nullopt);
+  pre_flag_.assign(target_ids_.size(), std::nullopt);
   bod_opt_ = bod_options(up.tuning.bod);
   if (up.tuning.bod.enabled) next_bod_ = up.epoch.plus_seconds(up.tuning.bod.period_s);
   local_.assign(target_ids_.size(), 0);
@@ -449,6 +451,7 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
   filter_->initialize(t0, filter_->make_state(obs, roes, aux), P);
   suspect_.assign(target_ids_.size(), false);
   manoeuvre_flagged_.assign(target_ids_.size(), std::nullopt);
+  pre_flag_.assign(target_ids_.size(), std::nullopt);
   tracks_.clear();
   reinit_pending_ = false;
   std::string what;
@@ -835,6 +838,10 @@ void Navigator::check_health() {
       // Health check 5: the bearings no longer fit the covariance. The target
       // is suspect until one fits the inflated estimate, and BOD's next
       // attempt (check 1) re-initialises it if it is wrong, not just unsure.
+      if (up_.tuning.bod.reinit_after_check5 && !manoeuvre_flagged_[k]) {
+        manoeuvre_flagged_[k] = f.epoch();
+        pre_flag_[k] = sod_mean_estimate(ki);  // before the inflation below
+      }
       const double nis = f.recent_mean_nis(ki);
       const double sigma_dv = maneuver_sigma_mps(nis);
       f.inflate_target_maneuver(ki, sigma_dv, f.recent_nis_span_s(ki));
@@ -850,7 +857,6 @@ void Navigator::check_health() {
                     h.targets[k].reason.c_str(), sigma_dv);
       suspect_[k] = false;
       set_suspect(ki, true, buf);
-      if (up_.tuning.bod.reinit_after_check5 && !manoeuvre_flagged_[k]) manoeuvre_flagged_[k] = f.epoch();
       continue;
     }
     if (c != sod::HealthCondition::kLargeResiduals && c != sod::HealthCondition::kOutOfRange) continue;
@@ -862,6 +868,7 @@ void Navigator::check_health() {
     }
     suspect_[k] = false;
     manoeuvre_flagged_[k].reset();
+    pre_flag_[k].reset();
     if (have) {
       f.reinitialize_target(ki, roe, P);
     } else {
@@ -905,6 +912,24 @@ bool Navigator::restart_estimate(int k, astro::TimeTT t, const astro::QnsElement
   return false;
 }
 
+namespace {
+// Jacobian of a map between ROE vectors by central differences (dlambda
+// wrapped), for carrying a covariance through it.
+template <typename Map>
+Mat6 roe_map_jacobian(const Map& map, const Vec6& x) {
+  Mat6 J;
+  for (int k = 0; k < 6; ++k) {
+    Vec6 a = x, c = x;
+    a[k] += 1e-7;
+    c[k] -= 1e-7;
+    Vec6 d = map(a) - map(c);
+    d[1] = astro::wrap_pi(d[1]);
+    J.col(k) = d / 2e-7;
+  }
+  return J;
+}
+}  // namespace
+
 Navigator::OsculatingRoe Navigator::osculating_at(const BodEstimate& b, astro::TimeTT t,
                                                  const astro::QnsElements& observer_osc) {
   // Mean ROE at t by the J2 STM, then roe_osc = roe(osc(observer mean), osc(target mean)),
@@ -920,15 +945,7 @@ Navigator::OsculatingRoe Navigator::osculating_at(const BodEstimate& b, astro::T
   };
   OsculatingRoe o;
   o.roe = map(m);
-  Mat6 J;
-  for (int k = 0; k < 6; ++k) {
-    Vec6 a = m, c = m;
-    a[k] += 1e-7;
-    c[k] -= 1e-7;
-    Vec6 d = map(a) - map(c);
-    d[1] = astro::wrap_pi(d[1]);
-    J.col(k) = d / 2e-7;
-  }
+  const Mat6 J = roe_map_jacobian(map, m);
   o.P = J * Pm * J.transpose();
   o.P = 0.5 * (o.P + o.P.transpose()).eval();
   return o;
@@ -945,6 +962,46 @@ double Navigator::bod_distance2(int k, const OsculatingRoe& b) const {
   return std::isfinite(d2) ? d2 : 1e30;
 }
 
+std::optional<Navigator::BodEstimate> Navigator::sod_mean_estimate(int k) const {
+  // roe_mean = roe(mean(observer), mean(target)), the target's osculating
+  // elements from SOD's osculating ROE; the covariance through the map's
+  // Jacobian (central differences, as osculating_at).
+  const auto& f = *filter_;
+  const int off = f.layout().target_offset(k);
+  const astro::QnsElements observer_osc = f.observer();
+  try {
+    const astro::QnsElements observer_mean = dynamics::mean_from_osculating(observer_osc);
+    const auto map = [&](const Vec6& roe_osc) {
+      const astro::QnsElements target = astro::qns_from_roe(observer_osc, astro::Roe::from_vector(roe_osc));
+      return astro::roe_from_qns(observer_mean, dynamics::mean_from_osculating(target)).as_vector();
+    };
+    const Vec6 x = f.state().segment<6>(off);
+    BodEstimate e{f.epoch(), observer_mean, map(x), Mat6::Zero()};
+    const Mat6 J = roe_map_jacobian(map, x);
+    e.P_mean = J * f.covariance().block<6, 6>(off, off) * J.transpose();
+    e.P_mean = 0.5 * (e.P_mean + e.P_mean.transpose()).eval();
+    if (!e.roe_mean.allFinite() || !e.P_mean.allFinite()) return std::nullopt;
+    return e;
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+double Navigator::pre_flag_distance2(int k, const OsculatingRoe& b, astro::TimeTT t) const {
+  const auto& pre = pre_flag_[static_cast<std::size_t>(k)];
+  if (!pre) return std::numeric_limits<double>::infinity();
+  try {
+    const OsculatingRoe o = osculating_at(*pre, t, filter_->observer());
+    Vec6 d = b.roe - o.roe;
+    d[1] = astro::wrap_pi(d[1]);
+    const Eigen::LDLT<Mat6> ldlt(b.P + o.P);
+    const double d2 = d.dot(ldlt.solve(d));
+    return std::isfinite(d2) ? d2 : std::numeric_limits<double>::infinity();
+  } catch (const std::exception&) {
+    return std::numeric_limits<double>::infinity();
+  }
+}
+
 void Navigator::bind_track(int track, int k, astro::TimeTT t) {
   Association& as = tracks_[track];
   as = Association{};
@@ -958,6 +1015,7 @@ void Navigator::set_target_from_bod(int k, int track, const OsculatingRoe& b, as
   filter_->reinitialize_target(k, b.roe, b.P);
   suspect_[static_cast<std::size_t>(k)] = false;
   manoeuvre_flagged_[static_cast<std::size_t>(k)].reset();
+  pre_flag_[static_cast<std::size_t>(k)].reset();
   has_estimate_[static_cast<std::size_t>(k)] = true;
   for (auto& [tid, as] : tracks_) {
     if (as.target == k) as = Association{};
@@ -1133,14 +1191,33 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       } else if (const auto flagged = manoeuvre_flagged_[static_cast<std::size_t>(k)]; flagged && first >= *flagged) {
         // After an unknown manoeuvre SOD's inflated covariance is a guess;
         // a batch made only of later bearings is not (paper: re-initialise
-        // from the most recent BOD estimate).
-        std::snprintf(buf, sizeof buf,
-                      "re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre at %s "
-                      "(squared Mahalanobis distance %.1f between BOD and SOD)",
-                      astro::utc_string(*flagged, 0).c_str(), d2);
-        messages_.push_back(head + r.brief());
-        decided(k, "SOD re-initialised from BOD after a manoeuvre (health check 5)", d2);
-        set_target_from_bod(k, track, b, t_est, buf);
+        // from the most recent BOD estimate). Unless BOD still fits SOD's
+        // estimate from before the flag: then check 5 was a false alarm, and
+        // SOD, which knows the target better than one batch, is kept.
+        const double d2_pre = pre_flag_distance2(k, b, t_est);
+        if (d2_pre > chi2) {
+          std::snprintf(buf, sizeof buf,
+                        "re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre at %s "
+                        "confirms it (squared Mahalanobis distance %.1f to SOD's estimate before the flag > %.2f; "
+                        "%.1f to SOD now)",
+                        astro::utc_string(*flagged, 0).c_str(), d2_pre, chi2, d2);
+          messages_.push_back(head + r.brief());
+          decided(k, "SOD re-initialised from BOD after a manoeuvre (health check 5, confirmed by BOD)", d2);
+          set_target_from_bod(k, track, b, t_est, buf);
+        } else {
+          messages_.push_back(head + r.brief());
+          std::snprintf(buf, sizeof buf,
+                        "SOD target %s: no manoeuvre: BOD's first batch after health check 5 flagged one at %s fits "
+                        "SOD's estimate from before the flag (squared Mahalanobis distance %.1f <= %.2f; %.1f to SOD "
+                        "now); SOD kept",
+                        target_ids_[static_cast<std::size_t>(k)].c_str(), astro::utc_string(*flagged, 0).c_str(),
+                        d2_pre, chi2, d2);
+          messages_.push_back(buf);
+          decided(k, "health check 1 passed; BOD finds no manoeuvre (health check 5 not confirmed)", d2);
+          manoeuvre_flagged_[static_cast<std::size_t>(k)].reset();
+          pre_flag_[static_cast<std::size_t>(k)].reset();
+          set_suspect(k, false, "BOD finds no manoeuvre");
+        }
       } else {
         decided(k, "health check 1 passed", d2);
         std::snprintf(buf, sizeof buf, "; health check 1 passed for target %s (squared Mahalanobis distance %.1f <= %.2f)",
@@ -1224,12 +1301,14 @@ void Navigator::run_bod(astro::TimeTT t_est) {
                     d2_best, chi2);
       decided(best, "health check 1 failed: SOD re-initialised from BOD (unbound track)", d2_best);
       set_target_from_bod(best, track, b, t_est, buf);
-    } else if (const auto flagged = manoeuvre_flagged_[static_cast<std::size_t>(best)]; flagged && first >= *flagged) {
+    } else if (const auto flagged = manoeuvre_flagged_[static_cast<std::size_t>(best)];
+               flagged && first >= *flagged && pre_flag_distance2(best, b, t_est) > chi2) {
       std::snprintf(buf, sizeof buf,
                     "re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre at %s "
-                    "(unbound track; squared Mahalanobis distance %.1f between BOD and SOD)",
-                    astro::utc_string(*flagged, 0).c_str(), d2_best);
-      decided(best, "SOD re-initialised from BOD after a manoeuvre (health check 5, unbound track)", d2_best);
+                    "confirms it (unbound track; squared Mahalanobis distance %.1f to SOD's estimate before the "
+                    "flag > %.2f; %.1f to SOD now)",
+                    astro::utc_string(*flagged, 0).c_str(), pre_flag_distance2(best, b, t_est), chi2, d2_best);
+      decided(best, "SOD re-initialised from BOD after a manoeuvre (health check 5 confirmed by BOD, unbound track)", d2_best);
       set_target_from_bod(best, track, b, t_est, buf);
     } else if (sigma_bod < sigma_sod) {
       std::snprintf(buf, sizeof buf,

@@ -407,11 +407,30 @@ TEST(NavigatorBod, AManoeuvreFlaggedByCheck5IsReinitialisedFromTheFirstBatchAfte
     const double sigma = std::sqrt(r.report.targets[0].P_roe(i, i)) * truth.observer().a_m;
     EXPECT_LT(std::abs(err[i]), 3.0 * sigma) << "ROE " << i << ": " << err.transpose();
   }
-  // Off (the default): check 5's inflation alone; BOD only confirms.
+  EXPECT_TRUE(said(r, "confirms it (squared Mahalanobis distance"));
+  // Off: check 5's inflation alone; BOD only confirms.
   Truth truth_off = sv2_truth();
-  const BodRun off = bod_run(sv2_uplink(truth_off), truth_off, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
+  config::ObserverUplink up_off = sv2_uplink(truth_off);
+  up_off.tuning.bod.reinit_after_check5 = false;
+  const BodRun off = bod_run(up_off, truth_off, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
   EXPECT_TRUE(said(off, "(health check 5"));
   EXPECT_FALSE(said(off, "first batch after health check 5"));
+}
+
+TEST(NavigatorBod, BodRefutesAFalseAlarmOfCheck5AndSodIsKept) {
+  // No burn, but check 5 made to fire: SOD weighs the bearings (3" of
+  // noise) with a 1-sigma of 1.8", so their NIS averages ~2.8 per bearing
+  // against check 5's 2.06. BOD's first batch after each flag fits SOD's
+  // estimate from before it: the target is not re-initialised and its flag
+  // is cleared.
+  Truth truth = sv2_truth();
+  config::ObserverUplink up = sv2_uplink(truth);
+  ASSERT_TRUE(up.tuning.bod.reinit_after_check5);  // the default
+  up.tuning.sod.bearing_sigma_arcsec = 1.8;
+  const BodRun r = bod_run(up, truth, 540);
+  ASSERT_TRUE(said(r, "(health check 5"));
+  EXPECT_TRUE(said(r, "SOD target SV2: no manoeuvre: BOD's first batch after health check 5 flagged one"));
+  EXPECT_FALSE(said(r, "re-initialised from BOD"));
 }
 
 }  // namespace

@@ -174,9 +174,9 @@ struct BodTuning {
   // covariance (docs/bod.md).
   double max_fit_ratio = 1.5;
   // After health check 5 flags a target, its first BOD batch made only of
-  // later bearings re-initialises it whatever check 1 says (docs/bod.md:
-  // off by default, measured worse in the flight-like world).
-  bool reinit_after_check5 = false;
+  // later bearings re-initialises it when it confirms the manoeuvre: farther
+  // than check_chi2 from SOD's estimate before the flag (docs/bod.md).
+  bool reinit_after_check5 = true;
 };
 struct SodTuning {
   double period_s = 60.0;

@@ -373,6 +373,17 @@ class Navigator {
   // since its latest (re-)initialisation. The first usable BOD batch of its
   // track made only of later bearings re-initialises it (issue 16).
   std::vector<std::optional<astro::TimeTT>> manoeuvre_flagged_;
+  // Per target: SOD's estimate at that flag, before check 5's inflation, as
+  // mean ROE; the first BOD batch after the flag re-initialises the target
+  // only when it is farther from this than check 1's threshold (BOD
+  // confirms the manoeuvre) and clears the flag when it is not.
+  std::vector<std::optional<BodEstimate>> pre_flag_;
+  // SOD's estimate of target k now as mean ROE (nullopt when the mean model
+  // refuses its elements).
+  [[nodiscard]] std::optional<BodEstimate> sod_mean_estimate(int k) const;
+  // Squared Mahalanobis distance between a BOD estimate b at t (osculating)
+  // and pre_flag_[k] carried to t; +inf when there is none.
+  [[nodiscard]] double pre_flag_distance2(int k, const OsculatingRoe& b, astro::TimeTT t) const;
   void set_suspect(int k, bool on, const std::string& why);
   void run_bod(astro::TimeTT t_est);
   // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating
