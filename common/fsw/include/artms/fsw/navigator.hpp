@@ -371,7 +371,8 @@ class Navigator {
   std::vector<astro::TimeTT> last_fit_t_;  // filter epoch of each target's latest accepted bearing
   // Per target: when health check 5 first flagged it (an unknown manoeuvre)
   // since its latest (re-)initialisation. The first usable BOD batch of its
-  // track made only of later bearings re-initialises it (issue 16).
+  // track made only of later bearings confirms the manoeuvre and
+  // re-initialises it, or refutes it (pre_flag_ below; issue 16).
   std::vector<std::optional<astro::TimeTT>> manoeuvre_flagged_;
   // Per target: SOD's estimate at that flag, before check 5's inflation, as
   // mean ROE; the first BOD batch after the flag re-initialises the target
