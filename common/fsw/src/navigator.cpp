@@ -951,14 +951,21 @@ Navigator::OsculatingRoe Navigator::osculating_at(const BodEstimate& b, astro::T
   return o;
 }
 
+namespace {
+// Squared Mahalanobis distance between two ROE estimates (dlambda wrapped),
+// with the sum of their covariances; NaN when it cannot be formed.
+double roe_distance2(const Vec6& roe_a, const Mat6& P_a, const Vec6& roe_b, const Mat6& P_b) {
+  Vec6 d = roe_a - roe_b;
+  d[1] = astro::wrap_pi(d[1]);
+  const Eigen::LDLT<Mat6> ldlt(P_a + P_b);
+  return d.dot(ldlt.solve(d));
+}
+}  // namespace
+
 double Navigator::bod_distance2(int k, const OsculatingRoe& b) const {
   const auto& f = *filter_;
   const int off = f.layout().target_offset(k);
-  Vec6 d = b.roe - f.state().segment<6>(off);
-  d[1] = astro::wrap_pi(d[1]);
-  const Mat6 S = b.P + f.covariance().block<6, 6>(off, off);
-  const Eigen::LDLT<Mat6> ldlt(S);
-  const double d2 = d.dot(ldlt.solve(d));
+  const double d2 = roe_distance2(b.roe, b.P, f.state().segment<6>(off), f.covariance().block<6, 6>(off, off));
   return std::isfinite(d2) ? d2 : 1e30;
 }
 
@@ -992,10 +999,7 @@ double Navigator::pre_flag_distance2(int k, const OsculatingRoe& b, astro::TimeT
   if (!pre) return std::numeric_limits<double>::infinity();
   try {
     const OsculatingRoe o = osculating_at(*pre, t, filter_->observer());
-    Vec6 d = b.roe - o.roe;
-    d[1] = astro::wrap_pi(d[1]);
-    const Eigen::LDLT<Mat6> ldlt(b.P + o.P);
-    const double d2 = d.dot(ldlt.solve(d));
+    const double d2 = roe_distance2(b.roe, b.P, o.roe, o.P);
     return std::isfinite(d2) ? d2 : std::numeric_limits<double>::infinity();
   } catch (const std::exception&) {
     return std::numeric_limits<double>::infinity();
@@ -1271,6 +1275,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       continue;
     }
     const double d2_best = bod_distance2(best, b);
+    double d2_pre = 0.0;  // to SOD's estimate before a check-5 flag, when one is tested below
     const int off = f.layout().target_offset(best);
     const double sigma_sod = std::sqrt(f.covariance()(off + 1, off + 1));
     const double sigma_bod = std::sqrt(b.P(1, 1));
@@ -1302,12 +1307,12 @@ void Navigator::run_bod(astro::TimeTT t_est) {
       decided(best, "health check 1 failed: SOD re-initialised from BOD (unbound track)", d2_best);
       set_target_from_bod(best, track, b, t_est, buf);
     } else if (const auto flagged = manoeuvre_flagged_[static_cast<std::size_t>(best)];
-               flagged && first >= *flagged && pre_flag_distance2(best, b, t_est) > chi2) {
+               flagged && first >= *flagged && (d2_pre = pre_flag_distance2(best, b, t_est)) > chi2) {
       std::snprintf(buf, sizeof buf,
                     "re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre at %s "
                     "confirms it (unbound track; squared Mahalanobis distance %.1f to SOD's estimate before the "
                     "flag > %.2f; %.1f to SOD now)",
-                    astro::utc_string(*flagged, 0).c_str(), pre_flag_distance2(best, b, t_est), chi2, d2_best);
+                    astro::utc_string(*flagged, 0).c_str(), d2_pre, chi2, d2_best);
       decided(best, "SOD re-initialised from BOD after a manoeuvre (health check 5 confirmed by BOD, unbound track)", d2_best);
       set_target_from_bod(best, track, b, t_est, buf);
     } else if (sigma_bod < sigma_sod) {
