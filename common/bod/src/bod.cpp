@@ -11,6 +11,7 @@
 
 #include "artms/astro/bearing.hpp"
 #include "artms/astro/constants.hpp"
+#include "artms/dynamics/gve.hpp"
 
 namespace artms::bod {
 
@@ -96,6 +97,13 @@ void Options::validate() const {
   if (!(max_a_da_m > 0.0)) fail("max_a_da_m", "must be > 0");
   if (!(max_sigma_range_fraction > 0.0)) fail("max_sigma_range_fraction", "must be > 0");
   if (!(max_sigma_a_da_m > 0.0)) fail("max_sigma_a_da_m", "must be > 0");
+  if (!(corrected_model_sigma_m >= 0.0) || !std::isfinite(corrected_model_sigma_m)) {
+    fail("corrected_model_sigma_m", "must be finite and >= 0");
+  }
+  if (!(corrected_model_sigma_range_fraction >= 0.0) || !(corrected_model_sigma_range_fraction < 1.0)) {
+    fail("corrected_model_sigma_range_fraction", "must be in [0, 1)");
+  }
+  if (!(correction_window > 1.0) || !std::isfinite(correction_window)) fail("correction_window", "must be finite and > 1");
   if (!(model_sigma_m >= 0.0) || !std::isfinite(model_sigma_m)) fail("model_sigma_m", "must be finite and >= 0");
   if (!(model_sigma_range_fraction >= 0.0) || !(model_sigma_range_fraction < 1.0)) {
     fail("model_sigma_range_fraction", "must be in [0, 1)");
@@ -110,6 +118,12 @@ std::string Result::brief() const {
                   "post-fit RMS %.1f arcsec (correlation inflation %.1f), %d iterations",
                   measurements, range_m / 1e3, sigma_range_m / 1e3, roe_mean.dlambda * a_observer_m,
                   roe_mean.da * a_observer_m, residual_rms_rad / astro::kArcsecToRad, correlation_inflation, iterations);
+    if (model_correction_rms_rad > 0.0) {
+      char more[160];
+      std::snprintf(more, sizeof more, "; corrected for the onboard model (%.2f arcsec RMS; range %.2f km before)",
+                    model_correction_rms_rad / astro::kArcsecToRad, uncorrected_range_m / 1e3);
+      return std::string(buf) + more;
+    }
   } else {
     std::snprintf(buf, sizeof buf, "BOD not usable (%s): %s", to_string(verdict), why.c_str());
   }
@@ -508,10 +522,78 @@ static Result solve_unguarded(const std::vector<Measurement>& batch_in, const Ob
   return r;
 }
 
+// The onboard numerical model's bearings minus the mean J2 theory's, for the
+// solution r, at every measurement (both spacecraft from the solution's
+// osculating states at t_est: the difference is what the mean theory misses
+// of the onboard model along the batch).
+std::vector<Eigen::Vector2d> model_bearing_differences(const std::vector<Measurement>& batch, const ObserverPrior& prior,
+                                                       const Result& r, const Options& opt) {
+  astro::QnsElements chief = prior.mean;
+  chief.a_m = r.a_observer_m;
+  const astro::QnsElements deputy = astro::qns_from_roe(chief, r.roe_mean);
+  const dynamics::GveRk4Propagator prop(*opt.onboard_forces, opt.onboard_properties);
+  const astro::QnsElements o0 = dynamics::osculating_from_mean(chief, opt.j2);
+  const astro::QnsElements d0 = dynamics::osculating_from_mean(deputy, opt.j2);
+  std::vector<std::size_t> order(batch.size());
+  for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return batch[a].t < batch[b].t; });
+  std::vector<Eigen::Vector2d> dz(batch.size(), Eigen::Vector2d::Zero());
+  // Outward from t_est: backward over the earlier bearings, forward over the later ones.
+  auto sweep = [&](auto begin, auto end) {
+    astro::QnsElements o = o0, d = d0;
+    astro::TimeTT tc = prior.t_est;
+    for (auto it = begin; it != end; ++it) {
+      const Measurement& m = batch[*it];
+      o = prop.propagate(o, tc, m.t);
+      d = prop.propagate(d, tc, m.t);
+      tc = m.t;
+      const astro::Vec3 los_num = astro::cartesian_from_qns(d, opt.j2.gm_m3ps2).r_m - astro::cartesian_from_qns(o, opt.j2.gm_m3ps2).r_m;
+      const double dt = astro::seconds_between(prior.t_est, m.t);
+      const astro::QnsElements cj = dynamics::propagate_mean_j2(chief, dt, opt.j2);
+      const Vec6 roe_j = dynamics::roe_stm_j2(chief, dt, opt.j2) * r.roe_mean.as_vector();
+      const astro::QnsElements dj = astro::qns_from_roe(cj, astro::Roe::from_vector(roe_j));
+      const astro::Vec3 los_j2 = position(osculating(dj, opt.j2), opt.j2) - position(osculating(cj, opt.j2), opt.j2);
+      dz[*it] = angle_residual(angles(m.R_v_from_eci, los_num), angles(m.R_v_from_eci, los_j2));
+    }
+  };
+  const auto split = std::partition_point(order.begin(), order.end(), [&](std::size_t j) { return batch[j].t < prior.t_est; });
+  sweep(std::make_reverse_iterator(split), order.rend());
+  sweep(split, order.end());
+  return dz;
+}
+
 Result solve(const std::vector<Measurement>& batch, const ObserverPrior& prior, const Options& opt) {
   opt.validate();
   try {
-    return solve_unguarded(batch, prior, opt);
+    Result r = solve_unguarded(batch, prior, opt);
+    r.uncorrected_range_m = r.range_m;
+    if (opt.onboard_forces == nullptr || !r.usable()) return r;
+    // Model correction: the measured bearings less what the mean theory
+    // misses of the onboard model, solved again near the first range.
+    const std::vector<Eigen::Vector2d> dz = model_bearing_differences(batch, prior, r, opt);
+    std::vector<Measurement> corrected = batch;
+    double ss = 0.0;
+    for (std::size_t j = 0; j < batch.size(); ++j) {
+      const Measurement& m = batch[j];
+      if (!(m.u_eci.allFinite() && m.u_eci.norm() > 0.5 && m.R_v_from_eci.allFinite())) continue;
+      const Eigen::Vector2d z = angles(m.R_v_from_eci, m.u_eci.normalized()) - dz[j];
+      corrected[j].u_eci = m.R_v_from_eci.transpose() * astro::unit_los_from_bearing(astro::Bearing{z[0], z[1]});
+      ss += dz[j].squaredNorm();
+    }
+    Options second = opt;
+    const double ratio = std::pow(opt.range_max_m / opt.range_min_m, 1.0 / (opt.samples - 1));
+    second.range_min_m = std::max(opt.range_min_m, r.range_m / opt.correction_window);
+    second.range_max_m = std::min(opt.range_max_m, r.range_m * opt.correction_window);
+    second.model_sigma_m = opt.corrected_model_sigma_m;
+    second.model_sigma_range_fraction = opt.corrected_model_sigma_range_fraction;
+    second.samples = std::max(5, static_cast<int>(std::ceil(std::log(second.range_max_m / second.range_min_m) / std::log(ratio))) + 1);
+    Result c = solve_unguarded(corrected, prior, second);
+    if (!c.usable()) return r;
+    c.curve = std::move(r.curve);
+    c.best_sample = r.best_sample;
+    c.uncorrected_range_m = r.range_m;
+    c.model_correction_rms_rad = std::sqrt(ss / (2.0 * static_cast<double>(std::max<std::size_t>(1, batch.size()))));
+    return c;
   } catch (const std::exception& ex) {
     Result r;
     r.t_est = prior.t_est;

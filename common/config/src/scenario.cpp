@@ -1334,7 +1334,7 @@ class Parser {
       Map bm(ctx_, *bv,
              {"enabled", "period", "samples", "max_iterations", "range_min_m", "range_max_m", "min_measurements",
               "max_measurements", "batch_orbits", "max_sigma_range_fraction", "max_residual_arcsec", "check_chi2",
-              "max_fit_ratio", "reinit_after_check5"});
+              "max_fit_ratio", "reinit_after_check5", "model_correction"});
       if (bm.ok()) {
         bool_field(ctx_, bm, "enabled", t.bod.enabled);
         duration_field(ctx_, bm, "period", t.bod.period_s, false);
@@ -1360,6 +1360,7 @@ class Parser {
         number_field(ctx_, bm, "check_chi2", t.bod.check_chi2, positive());
         number_field(ctx_, bm, "max_fit_ratio", t.bod.max_fit_ratio, closed(1.0, 100.0));
         bool_field(ctx_, bm, "reinit_after_check5", t.bod.reinit_after_check5);
+        bool_field(ctx_, bm, "model_correction", t.bod.model_correction);
       }
     }
     if (const Val* sv = m.find("sod")) {

@@ -165,7 +165,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"batch_orbits", u.tuning.bod.batch_orbits},
           {"max_sigma_range_fraction", u.tuning.bod.max_sigma_range_fraction},
           {"max_residual_arcsec", u.tuning.bod.max_residual_arcsec}, {"check_chi2", u.tuning.bod.check_chi2},
-          {"max_fit_ratio", u.tuning.bod.max_fit_ratio}, {"reinit_after_check5", u.tuning.bod.reinit_after_check5}}},
+          {"max_fit_ratio", u.tuning.bod.max_fit_ratio}, {"reinit_after_check5", u.tuning.bod.reinit_after_check5},
+          {"model_correction", u.tuning.bod.model_correction}}},
         {"sod",
          {{"period_s", u.tuning.sod.period_s},
           {"bearing_sigma_arcsec", u.tuning.sod.bearing_sigma_arcsec},
@@ -298,6 +299,7 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.bod.check_chi2 = bod.at("check_chi2").get<double>();
     u.tuning.bod.max_fit_ratio = bod.value("max_fit_ratio", BodTuning{}.max_fit_ratio);  // older uplinks: the default
     u.tuning.bod.reinit_after_check5 = bod.at("reinit_after_check5").get<bool>();
+    u.tuning.bod.model_correction = bod.value("model_correction", BodTuning{}.model_correction);
     const auto& sod = t.at("sod");
     u.tuning.sod.period_s = sod.at("period_s").get<double>();
     u.tuning.sod.bearing_sigma_arcsec = sod.at("bearing_sigma_arcsec").get<double>();

@@ -197,6 +197,10 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
   manoeuvre_flagged_.assign(target_ids_.size(), std::nullopt);
   pre_flag_.assign(target_ids_.size(), std::nullopt);
   bod_opt_ = bod_options(up.tuning.bod);
+  if (up.tuning.bod.model_correction) {
+    bod_opt_.onboard_forces = &forces_;  // BOD corrects the mean J2 theory for SOD's numerical model
+    bod_opt_.onboard_properties = up.onboard_properties(up.observer.spacecraft);
+  }
   if (up.tuning.bod.enabled) next_bod_ = up.epoch.plus_seconds(up.tuning.bod.period_s);
   local_.assign(target_ids_.size(), 0);
   nis_sum_.assign(target_ids_.size(), 0.0);

@@ -177,6 +177,10 @@ struct BodTuning {
   // later bearings re-initialises it when it confirms the manoeuvre: farther
   // than check_chi2 from SOD's estimate before the flag (docs/bod.md).
   bool reinit_after_check5 = true;
+  // BOD corrects its mean J2 theory for what it misses of the onboard
+  // numerical model (gravity beyond J2, drag, Sun, Moon) along the batch and
+  // solves again (bod::Options::onboard_forces, docs/bod.md).
+  bool model_correction = true;
 };
 struct SodTuning {
   double period_s = 60.0;
