@@ -97,12 +97,6 @@ void Options::validate() const {
   if (!(max_a_da_m > 0.0)) fail("max_a_da_m", "must be > 0");
   if (!(max_sigma_range_fraction > 0.0)) fail("max_sigma_range_fraction", "must be > 0");
   if (!(max_sigma_a_da_m > 0.0)) fail("max_sigma_a_da_m", "must be > 0");
-  if (!(corrected_model_sigma_m >= 0.0) || !std::isfinite(corrected_model_sigma_m)) {
-    fail("corrected_model_sigma_m", "must be finite and >= 0");
-  }
-  if (!(corrected_model_sigma_range_fraction >= 0.0) || !(corrected_model_sigma_range_fraction < 1.0)) {
-    fail("corrected_model_sigma_range_fraction", "must be in [0, 1)");
-  }
   if (!(correction_window > 1.0) || !std::isfinite(correction_window)) fail("correction_window", "must be finite and > 1");
   if (!(model_sigma_m >= 0.0) || !std::isfinite(model_sigma_m)) fail("model_sigma_m", "must be finite and >= 0");
   if (!(model_sigma_range_fraction >= 0.0) || !(model_sigma_range_fraction < 1.0)) {
@@ -584,8 +578,6 @@ Result solve(const std::vector<Measurement>& batch, const ObserverPrior& prior, 
     const double ratio = std::pow(opt.range_max_m / opt.range_min_m, 1.0 / (opt.samples - 1));
     second.range_min_m = std::max(opt.range_min_m, r.range_m / opt.correction_window);
     second.range_max_m = std::min(opt.range_max_m, r.range_m * opt.correction_window);
-    second.model_sigma_m = opt.corrected_model_sigma_m;
-    second.model_sigma_range_fraction = opt.corrected_model_sigma_range_fraction;
     second.samples = std::max(5, static_cast<int>(std::ceil(std::log(second.range_max_m / second.range_min_m) / std::log(ratio))) + 1);
     Result c = solve_unguarded(corrected, prior, second);
     if (!c.usable()) return r;

@@ -418,8 +418,8 @@ TEST(BodStudy, DISABLED_ModelErrorFloorsWithTheCorrection) {
         Options opt = fast_options();
         opt.range_max_m = 250e3;
         opt.onboard_forces = &onboard;
-        opt.corrected_model_sigma_m = sigma_m;
-        opt.corrected_model_sigma_range_fraction = fraction;
+        opt.model_sigma_m = sigma_m;
+        opt.model_sigma_range_fraction = fraction;
         const Result r = solve(batch, prior, opt);
         if (!r.usable()) continue;
         const Vec6 e = r.roe_mean.as_vector() * r.a_observer_m - truth;
