@@ -1126,6 +1126,8 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     rec.iterations = static_cast<std::uint32_t>(r.iterations);
     rec.residual_rms_rad = r.residual_rms_rad;
     rec.correlation_inflation = r.correlation_inflation;
+    rec.model_correction_rms_rad = r.model_correction_rms_rad;
+    rec.uncorrected_range_m = r.uncorrected_range_m;
     rec.a_observer_m = r.a_observer_m;
     rec.range_m = r.range_m;
     rec.sigma_range_m = r.sigma_range_m;

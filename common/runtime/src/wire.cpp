@@ -382,6 +382,8 @@ bus::BodAttempt from_wire(const artms_msg_BodAttempt& m) {
   b.iterations = m.iterations;
   b.residual_rms_rad = m.residual_rms_rad;
   b.correlation_inflation = m.correlation_inflation;
+  b.model_correction_rms_rad = m.model_correction_rms_rad;
+  b.uncorrected_range_m = m.uncorrected_range_m;
   b.a_observer_m = m.a_observer_m;
   b.range_m = m.range_m;
   b.sigma_range_m = m.sigma_range_m;
@@ -408,6 +410,8 @@ artms_msg_BodAttempt to_wire(const bus::BodAttempt& b, std::vector<artms_msg_Bod
   m.iterations = b.iterations;
   m.residual_rms_rad = b.residual_rms_rad;
   m.correlation_inflation = b.correlation_inflation;
+  m.model_correction_rms_rad = b.model_correction_rms_rad;
+  m.uncorrected_range_m = b.uncorrected_range_m;
   m.a_observer_m = b.a_observer_m;
   m.range_m = b.range_m;
   m.sigma_range_m = b.sigma_range_m;

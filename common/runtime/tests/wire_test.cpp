@@ -35,6 +35,8 @@ bus::BodAttempt attempt(std::uint32_t n) {
   b.iterations = 3;
   b.residual_rms_rad = 3.9192 * 4.84813681109536e-6;
   b.correlation_inflation = 1.2105;
+  b.model_correction_rms_rad = 1.5e-5;
+  b.uncorrected_range_m = 49187.5;
   b.a_observer_m = 6937558.068;
   b.range_m = 51085.675;
   b.sigma_range_m = 573.141;
@@ -74,6 +76,8 @@ TEST(Wire, BodAttemptRoundTrip) {
   EXPECT_EQ(w.iterations, b.iterations);
   EXPECT_EQ(w.residual_rms_rad, b.residual_rms_rad);
   EXPECT_EQ(w.correlation_inflation, b.correlation_inflation);
+  EXPECT_EQ(w.model_correction_rms_rad, b.model_correction_rms_rad);
+  EXPECT_EQ(w.uncorrected_range_m, b.uncorrected_range_m);
   EXPECT_EQ(w.a_observer_m, b.a_observer_m);
   EXPECT_EQ(w.range_m, b.range_m);
   EXPECT_EQ(w.sigma_range_m, b.sigma_range_m);
@@ -135,6 +139,9 @@ TEST(Wire, RecorderWritesBodFilesAndRejectsMalformedAttempts) {
     bus::BodAttempt nan_converged = attempt(5);
     nan_converged.curve[2].chi2 = std::numeric_limits<double>::quiet_NaN();  // converged: refused
     rec.add(through_wire(nan_converged));
+    bus::BodAttempt nan_correction = attempt(8);
+    nan_correction.model_correction_rms_rad = std::numeric_limits<double>::quiet_NaN();
+    rec.add(through_wire(nan_correction));
     bus::BodAttempt unknown_code = attempt(6);
     unknown_code.verdict = static_cast<bus::BodVerdict>(bus::kMaxBodVerdict + 1);
     rec.add(through_wire(unknown_code));
@@ -145,16 +152,16 @@ TEST(Wire, RecorderWritesBodFilesAndRejectsMalformedAttempts) {
     rec.flush(sim::Recorder::kAll);
     rejected = rec.rejected();
   }
-  EXPECT_EQ(rejected, 5u);
+  EXPECT_EQ(rejected, 6u);
   const auto rows = lines(dir / "bod" / "SV2.csv");
   ASSERT_EQ(rows.size(), 3u);
   EXPECT_EQ(rows[0].substr(0, 38), "t_utc,t_tt_ns,observer,attempt,track,t");
   EXPECT_EQ(rows[1],
             "2024-05-08T02:59:00.000Z,768409209184000001,SV2,1,3,SV4,0,usable,102,3,3.9192,1.2105,6937558.068,"
             "51085.675,573.141,94.582,51086.354,364.187,498.595,-44.852,-1822.264,10.000,11.000,12.000,13.000,"
-            "14.000,15.000,,SOD initialised from BOD; no estimate before,");
+            "14.000,15.000,,3.094,49187.500,SOD initialised from BOD; no estimate before,");
   EXPECT_NE(rows[2].find(",4,minimum_at_edge,"), std::string::npos) << rows[2];
-  EXPECT_NE(rows[2].find(",12.500,not usable,the smallest residual is at the nearest sample (2.0 km): the range is "
+  EXPECT_NE(rows[2].find(",12.500,3.094,49187.500,not usable,the smallest residual is at the nearest sample (2.0 km): the range is "
                          "outside [2.0; 200.0] km"),
             std::string::npos)
       << rows[2];

@@ -139,7 +139,7 @@ Recorder::Recorder(const config::Scenario& sc, const std::string& out_dir)
         "residual_rms_arcsec,correlation_inflation,a_observer_m,range_m,sigma_range_m,"
         "a_da_m,a_dlambda_m,a_dex_m,a_dey_m,a_dix_m,a_diy_m,"
         "sigma_a_da_m,sigma_a_dlambda_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_dix_m,sigma_a_diy_m,"
-        "mahalanobis2,action,why");
+        "mahalanobis2,model_correction_arcsec,uncorrected_range_m,action,why");
     bod_curves_[o.spacecraft] = std::make_unique<Sink>(dir / "bod" / (o.spacecraft + "_curves.csv"),
                                                        "attempt,sample,a_dlambda_m,residual_rms_arcsec,chi2,converged");
   }
@@ -283,7 +283,8 @@ void Recorder::add(const bus::BodAttempt& b) {
   const std::size_t samples = std::min(b.curve.size(), bus::kMaxBodSamples);
   bool finite = std::isfinite(b.residual_rms_rad) && std::isfinite(b.correlation_inflation) &&
                 std::isfinite(b.a_observer_m) && std::isfinite(b.range_m) && std::isfinite(b.sigma_range_m) &&
-                std::isfinite(b.mahalanobis2);
+                std::isfinite(b.mahalanobis2) && std::isfinite(b.model_correction_rms_rad) &&
+                std::isfinite(b.uncorrected_range_m);
   for (double v : b.a_roe_mean_m) finite = finite && std::isfinite(v);
   for (double v : b.covariance_a_roe_m2) finite = finite && std::isfinite(v);
   for (std::size_t k = 0; k < samples; ++k) {
@@ -306,6 +307,8 @@ void Recorder::add(const bus::BodAttempt& b) {
   for (std::size_t i = 0; i < 6; ++i) line += fmt(",%.3f", sd(i));
   // mahalanobis2 < 0: health check 1 was not made (empty).
   for (const std::string& field : {opt_num("%.3f", b.mahalanobis2, b.mahalanobis2 < 0.0),
+                                   fmt("%.3f", b.model_correction_rms_rad * kRadToArcsec),
+                                   fmt("%.3f", b.uncorrected_range_m),
                                    csv_text(bus::bounded(b.action, bus::kEventTextChars)),
                                    csv_text(bus::bounded(b.why, bus::kEventTextChars))}) {
     line += ',';

@@ -272,6 +272,8 @@ struct BodAttempt {
   std::uint32_t iterations = 0;
   double residual_rms_rad = 0.0;
   double correlation_inflation = 1.0;
+  double model_correction_rms_rad = 0.0;  // BOD's correction for the onboard model (0: none)
+  double uncorrected_range_m = 0.0;       // the range before it
   double a_observer_m = 0.0;
   double range_m = 0.0;
   double sigma_range_m = 0.0;
