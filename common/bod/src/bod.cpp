@@ -520,7 +520,7 @@ static Result solve_unguarded(const std::vector<Measurement>& batch_in, const Ob
 // solution r, at every measurement (both spacecraft from the solution's
 // osculating states at t_est: the difference is what the mean theory misses
 // of the onboard model along the batch).
-std::vector<Eigen::Vector2d> model_bearing_differences(const std::vector<Measurement>& batch, const ObserverPrior& prior,
+static std::vector<Eigen::Vector2d> model_bearing_differences(const std::vector<Measurement>& batch, const ObserverPrior& prior,
                                                        const Result& r, const Options& opt) {
   astro::QnsElements chief = prior.mean;
   chief.a_m = r.a_observer_m;
@@ -556,36 +556,50 @@ std::vector<Eigen::Vector2d> model_bearing_differences(const std::vector<Measure
   return dz;
 }
 
+// Model correction (Options::onboard_forces): the measured bearings less what
+// the mean theory misses of the onboard model at the usable solution r,
+// solved again near r's range. r itself when the second solution is not
+// usable or the correction fails.
+static Result corrected_solution(const std::vector<Measurement>& batch, const ObserverPrior& prior, Result r,
+                                 const Options& opt) {
+  try {
+    const std::vector<Eigen::Vector2d> dz = model_bearing_differences(batch, prior, r, opt);
+    std::vector<Measurement> corrected = batch;
+    double ss = 0.0;
+    std::size_t used = 0;
+    for (std::size_t j = 0; j < batch.size(); ++j) {
+      const Measurement& m = batch[j];
+      if (!(m.u_eci.allFinite() && m.u_eci.norm() > 0.5 && m.R_v_from_eci.allFinite() && dz[j].allFinite())) continue;
+      const Eigen::Vector2d z = angles(m.R_v_from_eci, m.u_eci.normalized()) - dz[j];
+      corrected[j].u_eci = m.R_v_from_eci.transpose() * astro::unit_los_from_bearing(astro::Bearing{z[0], z[1]});
+      ss += dz[j].squaredNorm();
+      ++used;
+    }
+    Options second = opt;
+    const double ratio = std::pow(opt.range_max_m / opt.range_min_m, 1.0 / (opt.samples - 1));
+    second.range_min_m = std::max(opt.range_min_m, r.range_m / opt.correction_window);
+    second.range_max_m = std::min(opt.range_max_m, r.range_m * opt.correction_window);
+    second.samples =
+        std::max(5, static_cast<int>(std::ceil(std::log(second.range_max_m / second.range_min_m) / std::log(ratio))) + 1);
+    Result c = solve_unguarded(corrected, prior, second);
+    if (!c.usable()) return r;
+    c.curve = std::move(r.curve);
+    c.best_sample = r.best_sample;
+    c.uncorrected_range_m = r.range_m;
+    c.model_correction_rms_rad = std::sqrt(ss / (2.0 * static_cast<double>(std::max<std::size_t>(1, used))));
+    return c;
+  } catch (const std::exception&) {
+    return r;
+  }
+}
+
 Result solve(const std::vector<Measurement>& batch, const ObserverPrior& prior, const Options& opt) {
   opt.validate();
   try {
     Result r = solve_unguarded(batch, prior, opt);
     r.uncorrected_range_m = r.range_m;
     if (opt.onboard_forces == nullptr || !r.usable()) return r;
-    // Model correction: the measured bearings less what the mean theory
-    // misses of the onboard model, solved again near the first range.
-    const std::vector<Eigen::Vector2d> dz = model_bearing_differences(batch, prior, r, opt);
-    std::vector<Measurement> corrected = batch;
-    double ss = 0.0;
-    for (std::size_t j = 0; j < batch.size(); ++j) {
-      const Measurement& m = batch[j];
-      if (!(m.u_eci.allFinite() && m.u_eci.norm() > 0.5 && m.R_v_from_eci.allFinite())) continue;
-      const Eigen::Vector2d z = angles(m.R_v_from_eci, m.u_eci.normalized()) - dz[j];
-      corrected[j].u_eci = m.R_v_from_eci.transpose() * astro::unit_los_from_bearing(astro::Bearing{z[0], z[1]});
-      ss += dz[j].squaredNorm();
-    }
-    Options second = opt;
-    const double ratio = std::pow(opt.range_max_m / opt.range_min_m, 1.0 / (opt.samples - 1));
-    second.range_min_m = std::max(opt.range_min_m, r.range_m / opt.correction_window);
-    second.range_max_m = std::min(opt.range_max_m, r.range_m * opt.correction_window);
-    second.samples = std::max(5, static_cast<int>(std::ceil(std::log(second.range_max_m / second.range_min_m) / std::log(ratio))) + 1);
-    Result c = solve_unguarded(corrected, prior, second);
-    if (!c.usable()) return r;
-    c.curve = std::move(r.curve);
-    c.best_sample = r.best_sample;
-    c.uncorrected_range_m = r.range_m;
-    c.model_correction_rms_rad = std::sqrt(ss / (2.0 * static_cast<double>(std::max<std::size_t>(1, batch.size()))));
-    return c;
+    return corrected_solution(batch, prior, std::move(r), opt);
   } catch (const std::exception& ex) {
     Result r;
     r.t_est = prior.t_est;
