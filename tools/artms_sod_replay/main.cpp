@@ -330,6 +330,11 @@ int run(int argc, char** argv) {
   app.add_option("--process-noise-scale", q_scale, "override tuning.sod.process_noise_scale")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--adaptive-process-noise", adaptive, "override tuning.sod.adaptive_process_noise (true/false)");
+  std::string adaptive_form, adaptive_average;
+  app.add_option("--adaptive-form", adaptive_form, "override tuning.sod.adaptive_form")
+      ->check(CLI::IsMember({"diagonal", "block"}));
+  app.add_option("--adaptive-average", adaptive_average, "override tuning.sod.adaptive_average")
+      ->check(CLI::IsMember({"clamped", "unclamped"}));
   std::string target_lines;
   app.add_option("--target-lines", target_lines,
                  "override tuning.sod.target_lines: another observer's bearing of a target updates the relative orbits "
@@ -362,6 +367,12 @@ int run(int argc, char** argv) {
   tuning.underweighting = underweighting.value_or(tuning.underweighting);
   tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
   tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
+  if (!adaptive_form.empty())
+    tuning.adaptive_form = adaptive_form == "block" ? config::SodTuning::AdaptiveForm::kBlock
+                                                    : config::SodTuning::AdaptiveForm::kDiagonal;
+  if (!adaptive_average.empty())
+    tuning.adaptive_average = adaptive_average == "unclamped" ? config::SodTuning::AdaptiveAverage::kUnclamped
+                                                              : config::SodTuning::AdaptiveAverage::kClamped;
   if (!target_lines.empty()) {
     tuning.target_lines = target_lines == "consider_observer" ? config::SodTuning::TargetLines::kConsiderObserver
                                                               : config::SodTuning::TargetLines::kUpdateObserver;

@@ -1367,7 +1367,7 @@ class Parser {
       Map sm(ctx_, *sv,
              {"period", "bearing_sigma_arcsec", "eps_assign", "eps_ambig",
               "max_steps_without_update", "max_large_residuals", "underweighting",
-              "adaptive_process_noise", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
+              "adaptive_process_noise", "adaptive_form", "adaptive_average", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
               "ballistic", "observer_acceleration_sigma_mps2", "target_lines"});
       if (sm.ok()) {
         duration_field(ctx_, sm, "period", t.sod.period_s, false);
@@ -1388,6 +1388,20 @@ class Parser {
         int_field(ctx_, sm, "max_large_residuals", t.sod.max_large_residuals, 1, kBig);
         number_field(ctx_, sm, "underweighting", t.sod.underweighting, non_negative());
         bool_field(ctx_, sm, "adaptive_process_noise", t.sod.adaptive_process_noise);
+        if (const Val* fv = sm.find("adaptive_form")) {
+          const auto e = read_string(ctx_, *fv, "diagonal or block");
+          using F = SodTuning::AdaptiveForm;
+          if (e && *e == "diagonal") t.sod.adaptive_form = F::kDiagonal;
+          else if (e && *e == "block") t.sod.adaptive_form = F::kBlock;
+          else if (e) ctx_.error(*fv, "expected diagonal or block, got " + describe(fv->node));
+        }
+        if (const Val* av = sm.find("adaptive_average")) {
+          const auto e = read_string(ctx_, *av, "clamped or unclamped");
+          using A = SodTuning::AdaptiveAverage;
+          if (e && *e == "clamped") t.sod.adaptive_average = A::kClamped;
+          else if (e && *e == "unclamped") t.sod.adaptive_average = A::kUnclamped;
+          else if (e) ctx_.error(*av, "expected clamped or unclamped, got " + describe(av->node));
+        }
         number_field(ctx_, sm, "process_noise_scale", t.sod.process_noise_scale, positive());
         int_field(ctx_, sm, "nis_window", t.sod.nis_window, 0, 1000);
         number_field(ctx_, sm, "nis_false_alarm", t.sod.nis_false_alarm, Range{0.0, 0.5, true, false});

@@ -175,6 +175,9 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"max_large_residuals", u.tuning.sod.max_large_residuals},
           {"underweighting", u.tuning.sod.underweighting},
           {"adaptive_process_noise", u.tuning.sod.adaptive_process_noise},
+          {"adaptive_form", u.tuning.sod.adaptive_form == SodTuning::AdaptiveForm::kBlock ? "block" : "diagonal"},
+          {"adaptive_average",
+           u.tuning.sod.adaptive_average == SodTuning::AdaptiveAverage::kUnclamped ? "unclamped" : "clamped"},
           {"process_noise_scale", u.tuning.sod.process_noise_scale},
           {"nis_window", u.tuning.sod.nis_window},
           {"nis_false_alarm", u.tuning.sod.nis_false_alarm},
@@ -309,6 +312,14 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.max_large_residuals = sod.at("max_large_residuals").get<int>();
     u.tuning.sod.underweighting = sod.at("underweighting").get<double>();
     u.tuning.sod.adaptive_process_noise = sod.at("adaptive_process_noise").get<bool>();
+    const std::string form = sod.value("adaptive_form", std::string("diagonal"));  // older uplinks: the default
+    if (form == "diagonal") u.tuning.sod.adaptive_form = SodTuning::AdaptiveForm::kDiagonal;
+    else if (form == "block") u.tuning.sod.adaptive_form = SodTuning::AdaptiveForm::kBlock;
+    else throw std::runtime_error(path + ": tuning.sod.adaptive_form must be diagonal or block, got " + form);
+    const std::string average = sod.value("adaptive_average", std::string("clamped"));
+    if (average == "clamped") u.tuning.sod.adaptive_average = SodTuning::AdaptiveAverage::kClamped;
+    else if (average == "unclamped") u.tuning.sod.adaptive_average = SodTuning::AdaptiveAverage::kUnclamped;
+    else throw std::runtime_error(path + ": tuning.sod.adaptive_average must be clamped or unclamped, got " + average);
     u.tuning.sod.process_noise_scale = sod.at("process_noise_scale").get<double>();
     u.tuning.sod.nis_window = sod.at("nis_window").get<int>();
     u.tuning.sod.nis_false_alarm = sod.at("nis_false_alarm").get<double>();

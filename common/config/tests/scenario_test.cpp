@@ -529,6 +529,19 @@ TEST(ScenarioValidation, CoarseOrbitOnlyInMode4AndPositive) {
                                    "  - spacecraft: SV2\n    mode: 4\n";
   expect_one("coarse_zero.yaml", bad, 13, "observers[0].coarse_orbit.sigma_roe_m", "out of range");
 }
+TEST(ScenarioLoad, AdaptiveFormAndAverageDefaultToThePapersAndAreNamedWhenWrong) {
+  const Scenario d = load_scenario(write_file("adaptive_default.yaml", kValid));
+  EXPECT_EQ(d.tuning.sod.adaptive_form, SodTuning::AdaptiveForm::kDiagonal);
+  EXPECT_EQ(d.tuning.sod.adaptive_average, SodTuning::AdaptiveAverage::kClamped);
+  const Scenario s = load_scenario(write_file(
+      "adaptive_block.yaml", kValid + "tuning:\n  sod: {adaptive_form: block, adaptive_average: unclamped}\n"));
+  EXPECT_EQ(s.tuning.sod.adaptive_form, SodTuning::AdaptiveForm::kBlock);
+  EXPECT_EQ(s.tuning.sod.adaptive_average, SodTuning::AdaptiveAverage::kUnclamped);
+  expect_one("adaptive_bad_form.yaml", kValid + "tuning:\n  sod: {adaptive_form: full}\n", 13,
+             "tuning.sod.adaptive_form", "expected diagonal or block");
+  expect_one("adaptive_bad_average.yaml", kValid + "tuning:\n  sod: {adaptive_average: 3}\n", 13,
+             "tuning.sod.adaptive_average", "expected clamped or unclamped");
+}
 TEST(ScenarioLoad, TargetLinesDefaultToConsiderTheObserverAndAreNamedWhenWrong) {
   using L = SodTuning::TargetLines;
   EXPECT_EQ(load_scenario(write_file("lines_default.yaml", kValid)).tuning.sod.target_lines, L::kConsiderObserver);

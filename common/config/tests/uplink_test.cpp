@@ -110,6 +110,20 @@ TEST(Uplink, RoundTripsTheCoarseOrbitOfMode4) {
   EXPECT_FALSE(read_uplink(path).coarse_orbit.has_value());
 }
 
+TEST(Uplink, AdaptiveFormAndAverageRoundTrip) {
+  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  ObserverUplink u = make_uplink(s, "SV4");
+  u.tuning.sod.adaptive_form = SodTuning::AdaptiveForm::kBlock;
+  u.tuning.sod.adaptive_average = SodTuning::AdaptiveAverage::kUnclamped;
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_adaptive.json";
+  write_uplink(u, path);
+  const ObserverUplink b = read_uplink(path);
+  EXPECT_EQ(b.tuning.sod.adaptive_form, SodTuning::AdaptiveForm::kBlock);
+  EXPECT_EQ(b.tuning.sod.adaptive_average, SodTuning::AdaptiveAverage::kUnclamped);
+  ASSERT_TRUE(replace_in_file(path, "\"block\"", "\"full\""));
+  EXPECT_THROW((void)read_uplink(path), std::runtime_error);
+}
+
 TEST(Uplink, TargetLinesRoundTripAndAnUnknownValueIsNamed) {
   const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
   ObserverUplink u = make_uplink(s, "SV4");

@@ -94,6 +94,11 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   o.health.max_large_residuals = t.max_large_residuals;
   o.bearing_underweighting = t.underweighting;
   o.adaptive.enabled = t.adaptive_process_noise;
+  o.adaptive.form = t.adaptive_form == config::SodTuning::AdaptiveForm::kBlock ? sod::AdaptiveNoiseForm::kBlock
+                                                                                : sod::AdaptiveNoiseForm::kDiagonal;
+  o.adaptive.average = t.adaptive_average == config::SodTuning::AdaptiveAverage::kUnclamped
+                           ? sod::AdaptiveNoiseAverage::kUnclamped
+                           : sod::AdaptiveNoiseAverage::kClamped;
   o.q_target_a_roe_m2ps *= t.process_noise_scale;
   o.health.nis_window = t.nis_window;
   if (t.nis_window > 0) o.health.nis_max_mean = sod::chi2_quantile(2 * t.nis_window, 1.0 - t.nis_false_alarm) / t.nis_window;

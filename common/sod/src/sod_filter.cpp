@@ -1,6 +1,7 @@
 #include "artms/sod/sod_filter.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -244,7 +245,9 @@ void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
   if (layout_.ballistic)
     q_nominal_.segment(layout_.ballistic_offset(), layout_.n_targets).setConstant(options_.q_ballistic_m4pkg2ps);
   q_ = q_nominal_;
-  pending_dx2_ = VectorXd::Zero(n);
+  Q_rate_ = q_nominal_.asDiagonal();
+  Q_average_ = Q_rate_;
+  pending_dxdx_ = MatrixXd::Zero(n, n);
   pending_ = false;
   last_dt_s_ = 0.0;
   counters_.assign(layout_.n_targets, {});
@@ -292,19 +295,51 @@ bool SodFilter::sigma_points(MatrixXd& X) const {
 
 void SodFilter::adapt_process_noise() {
   if (!options_.adaptive.enabled || !pending_ || !(last_dt_s_ > 0.0)) {
-    pending_dx2_.setZero();
+    pending_dxdx_.setZero();
     pending_ = false;
     return;
   }
   // docs/sod.md, "Adaptive process noise".
-  const double alpha = options_.adaptive.forgetting;
-  for (int i = 0; i < q_.size(); ++i) {
-    const double q_hat = q_[i] + pending_dx2_[i] / last_dt_s_;
-    const double q = alpha * q_[i] + (1.0 - alpha) * q_hat;
-    q_[i] = std::clamp(q, options_.adaptive.floor_factor * q_nominal_[i],
-                       options_.adaptive.ceiling_factor * q_nominal_[i]);
+  const AdaptiveNoiseOptions& o = options_.adaptive;
+  const double alpha = o.forgetting, floor = o.floor_factor, ceiling = o.ceiling_factor;
+  const bool unclamped = o.average == AdaptiveNoiseAverage::kUnclamped;
+  const int n = layout_.size();
+  std::vector<char> in_block(n, 0);
+  if (o.form == AdaptiveNoiseForm::kBlock) {
+    std::vector<int> blocks{0};
+    for (int k = 0; k < layout_.n_targets; ++k) blocks.push_back(layout_.target_offset(k));
+    for (const int off : blocks) {
+      const Vec6 nominal = q_nominal_.segment<6>(off);
+      if (!(nominal.minCoeff() > 0.0)) continue;  // adapts per component below
+      // In the nominal's units, N^-1/2 A N^-1/2, the clamp acts on eigenvalues.
+      const Vec6 s = nominal.cwiseSqrt(), s_inv = s.cwiseInverse();
+      const Mat6 Q_prev = Q_rate_.block<6, 6>(off, off);
+      const Mat6 A_prev = unclamped ? Mat6(Q_average_.block<6, 6>(off, off)) : Q_prev;
+      const Mat6 Q_hat = Q_prev + pending_dxdx_.block<6, 6>(off, off) / last_dt_s_;
+      Mat6 M = s_inv.asDiagonal() * (alpha * A_prev + (1.0 - alpha) * Q_hat) * s_inv.asDiagonal();
+      M = 0.5 * (M + M.transpose());
+      const Eigen::SelfAdjointEigenSolver<Mat6> eig(M);
+      if (eig.info() != Eigen::Success || !eig.eigenvalues().allFinite()) continue;
+      const Mat6& V = eig.eigenvectors();
+      const auto rebuild = [&](double lo, double hi) -> Mat6 {
+        const Vec6 lambda = eig.eigenvalues().cwiseMax(lo).cwiseMin(hi);
+        return s.asDiagonal() * (V * lambda.asDiagonal() * V.transpose()) * s.asDiagonal();
+      };
+      Q_rate_.block<6, 6>(off, off) = rebuild(floor, ceiling);
+      Q_average_.block<6, 6>(off, off) = unclamped ? rebuild(-ceiling, ceiling) : Mat6(Q_rate_.block<6, 6>(off, off));
+      for (int i = off; i < off + 6; ++i) in_block[i] = 1;
+    }
   }
-  pending_dx2_.setZero();
+  for (int i = 0; i < n; ++i) {
+    if (in_block[i]) continue;
+    const double a_prev = unclamped ? Q_average_(i, i) : Q_rate_(i, i);
+    const double q_hat = Q_rate_(i, i) + pending_dxdx_(i, i) / last_dt_s_;
+    const double a = alpha * a_prev + (1.0 - alpha) * q_hat;
+    Q_rate_(i, i) = std::clamp(a, floor * q_nominal_[i], ceiling * q_nominal_[i]);
+    Q_average_(i, i) = unclamped ? std::clamp(a, -ceiling * q_nominal_[i], ceiling * q_nominal_[i]) : Q_rate_(i, i);
+  }
+  q_ = Q_rate_.diagonal();
+  pending_dxdx_.setZero();
   pending_ = false;
 }
 
@@ -416,7 +451,8 @@ bool SodFilter::begin_time_update(TimeTT t, TimeUpdateSummary& s) {
 
 // Q |dt| added, the prediction stored, the step counted.
 void SodFilter::finish_time_update(TimeTT t, const VectorXd& mean, MatrixXd P, TimeUpdateSummary& s) {
-  P.diagonal() += q_ * std::abs(s.dt_s);
+  if (options_.adaptive.form == AdaptiveNoiseForm::kBlock) P += Q_rate_ * std::abs(s.dt_s);
+  else P.diagonal() += q_ * std::abs(s.dt_s);
   if (!store(mean, P)) {
     s.why = "predicted covariance not positive definite (or state not finite)";
     return;
@@ -590,8 +626,12 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
   } catch (const std::exception&) {
     s.postfit_residual = VectorXd::Constant(nz, kNaN);
   }
-  // Covariance matching (docs/sod.md): dx dx^T - K S K^T, diagonal.
-  pending_dx2_ += dx.cwiseAbs2() - (K * S * K.transpose()).diagonal();
+  // Covariance matching (docs/sod.md): dx dx^T - K S K^T, its diagonal or its spacecraft blocks.
+  if (options_.adaptive.form == AdaptiveNoiseForm::kBlock) {
+    pending_dxdx_ += dx * dx.transpose() - K * S * K.transpose();
+  } else {
+    pending_dxdx_.diagonal() += dx.cwiseAbs2() - (K * S * K.transpose()).diagonal();
+  }
   pending_ = true;
   steps_without_update_ = 0;
   if (target >= 0) {

@@ -3,6 +3,8 @@
 // linearised (central-difference) propagation and measurement maps.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+
 #include "artms/sod/apriori.hpp"
 #include "artms/sod/sod_filter.hpp"
 #include "artms/testing/testing.hpp"
@@ -384,6 +386,21 @@ TEST(SodNumerics, UkfWeightsAndNees) {
   EXPECT_NEAR(f.filter.nees(x), 1.0, 1e-6);
 }
 
+// 20 bearings 0.01 rad off, alternately either side: corrections far larger
+// than expected, so the adaptive process noise grows. A time update after
+// each when asked.
+void drive_large_corrections(Fixture& f, bool time_updates) {
+  for (int s = 1; s <= 20; ++s) {
+    f.truth.advance_to(kT0.plus_seconds(60.0 * s));
+    BearingMeasurement m = f.truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
+    m.angles.az_rad += (s % 2 ? 1 : -1) * 0.01;
+    ASSERT_TRUE(f.filter.update_bearing(m).usable);
+    if (time_updates) {
+      ASSERT_TRUE(f.filter.time_update(kT0.plus_seconds(60.0 * s + 30.0)).usable);
+    }
+  }
+}
+
 // The adaptive estimate stays inside [floor, ceiling] x nominal.
 TEST(SodAdaptiveNoise, ClampedBetweenFloorAndCeiling) {
   SodOptions o;
@@ -391,12 +408,7 @@ TEST(SodAdaptiveNoise, ClampedBetweenFloorAndCeiling) {
   o.bearing_gate_mahalanobis = kInf;
   Fixture f(o, 0.05, 100.0);
   const VectorXd q0 = f.filter.process_noise_rate();
-  for (int s = 1; s <= 20; ++s) {
-    f.truth.advance_to(kT0.plus_seconds(60.0 * s));
-    BearingMeasurement m = f.truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
-    m.angles.az_rad += (s % 2 ? 1 : -1) * 0.01;  // large corrections: q grows
-    ASSERT_TRUE(f.filter.update_bearing(m).usable);
-  }
+  ASSERT_NO_FATAL_FAILURE(drive_large_corrections(f, false));
   ASSERT_TRUE(f.filter.time_update(kT0.plus_seconds(60.0 * 21)).usable);
   const VectorXd& q = f.filter.process_noise_rate();
   EXPECT_GT(q.maxCoeff(), 0.0);
@@ -406,6 +418,34 @@ TEST(SodAdaptiveNoise, ClampedBetweenFloorAndCeiling) {
   }
   const int dl = f.filter.layout().target_offset(0) + StateLayout::kDlambda;
   EXPECT_GT(q[dl], q0[dl]);
+}
+
+// Block form (docs/sod.md): each spacecraft's 6x6 rate is symmetric, couples
+// its components, and stays within [floor, ceiling] x the nominal in the
+// Loewner order (eigenvalues of N^-1/2 Q N^-1/2), with either average.
+TEST(SodAdaptiveNoise, BlockFormStaysBetweenFloorAndCeilingInTheLoewnerOrder) {
+  for (const auto average : {AdaptiveNoiseAverage::kClamped, AdaptiveNoiseAverage::kUnclamped}) {
+    SodOptions o;
+    o.adaptive.form = AdaptiveNoiseForm::kBlock;
+    o.adaptive.average = average;
+    o.adaptive.forgetting = 0.5;
+    o.bearing_gate_mahalanobis = kInf;
+    Fixture f(o, 0.05, 100.0);
+    const VectorXd q0 = f.filter.process_noise_rate();
+    ASSERT_NO_FATAL_FAILURE(drive_large_corrections(f, true));
+    const MatrixXd& Q = f.filter.process_noise_rate_matrix();
+    const int off = f.filter.layout().target_offset(0);
+    const Mat6 Qt = Q.block<6, 6>(off, off);
+    EXPECT_LT((Qt - Qt.transpose()).cwiseAbs().maxCoeff(), 1e-12 * Qt.cwiseAbs().maxCoeff());
+    EXPECT_GT((Qt - Mat6(Qt.diagonal().asDiagonal())).cwiseAbs().maxCoeff(), 0.0);  // coupled
+    const Vec6 s_inv = q0.segment<6>(off).cwiseSqrt().cwiseInverse();
+    const Eigen::SelfAdjointEigenSolver<Mat6> eig(s_inv.asDiagonal() * Qt * s_inv.asDiagonal());
+    EXPECT_GE(eig.eigenvalues().minCoeff(), o.adaptive.floor_factor * (1 - 1e-9));
+    EXPECT_LE(eig.eigenvalues().maxCoeff(), o.adaptive.ceiling_factor * (1 + 1e-9));
+    EXPECT_GT(eig.eigenvalues().maxCoeff(), 1.0);  // the large corrections raised it
+    // Outside the spacecraft blocks nothing couples.
+    EXPECT_EQ(Q.block(0, off, 6, 6).cwiseAbs().maxCoeff(), 0.0);
+  }
 }
 
 // The a-priori model's drift term against two-body propagation of a

@@ -191,6 +191,12 @@ struct SodTuning {
   int max_large_residuals = 10;
   double underweighting = 0.5;        // beta of measurement underweighting (docs/sod.md)
   bool adaptive_process_noise = true;  // paper: adaptive process noise estimation
+  // Which entries adapt, and whether the recursion runs on the clamped rate
+  // (sod::AdaptiveNoiseOptions, docs/sod.md "Adaptive process noise").
+  enum class AdaptiveForm { kDiagonal, kBlock };
+  enum class AdaptiveAverage { kClamped, kUnclamped };
+  AdaptiveForm adaptive_form = AdaptiveForm::kDiagonal;
+  AdaptiveAverage adaptive_average = AdaptiveAverage::kClamped;
   double process_noise_scale = 1.0;   // times the nominal target process noise
   // Health check 5 (docs/sod.md): mean NIS of a target's last nis_window
   // bearings against the chi2(2 W)/W quantile at 1 - nis_false_alarm.

@@ -40,12 +40,24 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Adaptive process noise (Sullivan, Koenig & D'Amico 2017; Stacey & D'Amico
-// 2018), covariance matching on the state correction dx = K nu, per state:
-//   q^  = q_{k-1} + diag(sum (dx dx^T - K S K^T)) / dt_{k-1}
-//   q_k = alpha q_{k-1} + (1 - alpha) q^
-// clamped to [floor_factor, ceiling_factor] x the nominal q (docs/sod.md).
+// 2018), covariance matching on the state correction dx = K nu:
+//   Q^  = Q_{k-1} + sum (dx dx^T - K S K^T) / dt_{k-1}
+//   A_k = alpha A_{k-1} + (1 - alpha) Q^,   Q_k = A_k clamped
+// to [floor_factor, ceiling_factor] x the nominal (docs/sod.md, "Adaptive
+// process noise"). The form says which entries adapt; the average whether
+// the recursion runs on the clamped Q (A = Q) or on its own unclamped A.
+enum class AdaptiveNoiseForm {
+  kDiagonal,  // one rate per state component (the paper's)
+  kBlock,     // a 6x6 rate per spacecraft (observer, each target), clamped in the Loewner order
+};
+enum class AdaptiveNoiseAverage {
+  kClamped,    // A = Q: the recursion runs on the clamped value
+  kUnclamped,  // A kept within +-ceiling x the nominal; only the Q applied is clamped
+};
 struct AdaptiveNoiseOptions {
   bool enabled = true;
+  AdaptiveNoiseForm form = AdaptiveNoiseForm::kDiagonal;
+  AdaptiveNoiseAverage average = AdaptiveNoiseAverage::kClamped;
   double forgetting = 0.95;  // alpha, in (0, 1)
   double floor_factor = 0.1;
   double ceiling_factor = 100.0;
@@ -372,6 +384,7 @@ class SodFilter {
   [[nodiscard]] Vec6 a_roe_sigma_m(int target) const;
   // Current (adapted) process noise rate q, state units^2 / s.
   [[nodiscard]] const VectorXd& process_noise_rate() const { return q_; }
+  [[nodiscard]] const MatrixXd& process_noise_rate_matrix() const { return Q_rate_; }
   [[nodiscard]] const TargetCounters& counters(int target) const;
   [[nodiscard]] int steps_without_update() const { return steps_without_update_; }
   [[nodiscard]] int rejected_total() const { return rejected_total_; }
@@ -411,8 +424,10 @@ class SodFilter {
   TimeTT t_;
   VectorXd x_;
   MatrixXd P_;
-  VectorXd q_nominal_, q_;
-  VectorXd pending_dx2_;  // sum of dx^2 - diag(K S K^T) since the last time update
+  VectorXd q_nominal_, q_;  // q_: the diagonal of Q_rate_
+  MatrixXd Q_rate_;         // process noise rate added in the time update (Q = Q_rate_ |dt|)
+  MatrixXd Q_average_;      // the adaptive recursion's A (= Q_rate_ with the clamped average)
+  MatrixXd pending_dxdx_;   // sum of dx dx^T - K S K^T since the last time update
   bool pending_ = false;
   double last_dt_s_ = 0.0;
   bool initialized_ = false;
