@@ -184,8 +184,8 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
   for (int k = 0; k < n; ++k) {
     const auto& ap = up.apriori[static_cast<std::size_t>(k)];
     const double dt = astro::seconds_between(up.epoch, c.t);
-    roes.push_back(astro::Roe::from_vector(sod::apriori_roe_drifted(ap.roe, obs0.a_m, dt)));
-    P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = sod::apriori_covariance_drifted(ap.P_roe, obs0.a_m, dt);
+    roes.push_back(astro::Roe::from_vector(sod::apriori_roe_at(ap.roe, obs0, dt)));
+    P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = sod::apriori_covariance_at(ap.P_roe, obs0, dt);
   }
   const Eigen::VectorXd aux_var = fsw::auxiliary_prior_variance(tuning, layout);
   const Eigen::VectorXd aux = Eigen::VectorXd::Zero(aux_var.size());
@@ -503,10 +503,10 @@ int run(int argc, char** argv) {
       const double dt = astro::seconds_between(up.epoch, g.t);
       std::vector<astro::Roe> roes;
       for (int k = 0; k < n; ++k) {
-        // The a-priori's along-track drift to the fix, as the navigator does.
+        // The a-priori's drift to the fix, as the navigator does.
         const auto& ap = up.apriori[static_cast<std::size_t>(k)];
-        roes.push_back(astro::Roe::from_vector(sod::apriori_roe_drifted(ap.roe, obs.a_m, dt)));
-        P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = sod::apriori_covariance_drifted(ap.P_roe, obs.a_m, dt);
+        roes.push_back(astro::Roe::from_vector(sod::apriori_roe_at(ap.roe, obs, dt)));
+        P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = sod::apriori_covariance_at(ap.P_roe, obs, dt);
       }
       f.initialize(g.t, f.make_state(obs, roes), P);
       started = true;

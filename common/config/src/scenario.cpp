@@ -1415,7 +1415,7 @@ class Parser {
           else if (e) ctx_.error(*lv, "expected consider_observer or update_observer, got " + describe(lv->node));
         }
         if (const Val* tv = sm.find("time_tag")) {
-          Map tm(ctx_, *tv, {"estimate", "sigma_s", "drift_sigma_ppm"});
+          Map tm(ctx_, *tv, {"estimate", "sigma_s", "drift_sigma_ppm", "senders", "senders_sigma_s"});
           if (tm.ok()) {
             if (const Val* ev = tm.find("estimate")) {
               const auto e = read_string(ctx_, *ev, "none, offset or drift");
@@ -1428,6 +1428,8 @@ class Parser {
             number_field(ctx_, tm, "sigma_s", t.sod.time_tag_sigma_s, Range{0.0, 60.0, true, true}, "s");
             number_field(ctx_, tm, "drift_sigma_ppm", t.sod.time_tag_drift_sigma_ppm, Range{0.0, 1e4, true, true},
                          "ppm");
+            bool_field(ctx_, tm, "senders", t.sod.time_tag_senders);
+            number_field(ctx_, tm, "senders_sigma_s", t.sod.time_tag_senders_sigma_s, Range{0.0, 60.0, true, true}, "s");
           }
         }
         if (const Val* bv = sm.find("ballistic")) {

@@ -184,6 +184,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"time_tag", static_cast<int>(u.tuning.sod.time_tag)},
           {"time_tag_sigma_s", u.tuning.sod.time_tag_sigma_s},
           {"time_tag_drift_sigma_ppm", u.tuning.sod.time_tag_drift_sigma_ppm},
+          {"time_tag_senders", u.tuning.sod.time_tag_senders},
+          {"time_tag_senders_sigma_s", u.tuning.sod.time_tag_senders_sigma_s},
           {"estimate_ballistic", u.tuning.sod.estimate_ballistic},
           {"ballistic_sigma_fraction", u.tuning.sod.ballistic_sigma_fraction},
           {"observer_acceleration_sigma_mps2", u.tuning.sod.observer_acceleration_sigma_mps2},
@@ -328,6 +330,8 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.time_tag = static_cast<SodTuning::TimeTagEstimation>(tt);
     u.tuning.sod.time_tag_sigma_s = sod.at("time_tag_sigma_s").get<double>();
     u.tuning.sod.time_tag_drift_sigma_ppm = sod.at("time_tag_drift_sigma_ppm").get<double>();
+    u.tuning.sod.time_tag_senders = sod.value("time_tag_senders", false);  // older uplinks: off
+    u.tuning.sod.time_tag_senders_sigma_s = sod.value("time_tag_senders_sigma_s", 1.0);
     u.tuning.sod.estimate_ballistic = sod.at("estimate_ballistic").get<bool>();
     u.tuning.sod.ballistic_sigma_fraction = sod.at("ballistic_sigma_fraction").get<double>();
     u.tuning.sod.observer_acceleration_sigma_mps2 = sod.value("observer_acceleration_sigma_mps2", 0.0);

@@ -542,6 +542,14 @@ TEST(ScenarioLoad, AdaptiveFormAndAverageDefaultToThePapersAndAreNamedWhenWrong)
   expect_one("adaptive_bad_average.yaml", kValid + "tuning:\n  sod: {adaptive_average: 3}\n", 13,
              "tuning.sod.adaptive_average", "expected clamped or unclamped");
 }
+TEST(ScenarioLoad, SenderClocksAreOffByDefaultAndNamedWhenWrong) {
+  EXPECT_FALSE(load_scenario(write_file("senders_default.yaml", kValid)).tuning.sod.time_tag_senders);
+  const Scenario s = load_scenario(
+      write_file("senders_on.yaml", kValid + "tuning:\n  sod:\n    time_tag: {estimate: none, senders: true}\n"));
+  EXPECT_TRUE(s.tuning.sod.time_tag_senders);
+  expect_one("senders_bad.yaml", kValid + "tuning:\n  sod:\n    time_tag: {senders: 2}\n", 14,
+             "tuning.sod.time_tag.senders", "true or false");
+}
 TEST(ScenarioLoad, TargetLinesDefaultToConsiderTheObserverAndAreNamedWhenWrong) {
   using L = SodTuning::TargetLines;
   EXPECT_EQ(load_scenario(write_file("lines_default.yaml", kValid)).tuning.sod.target_lines, L::kConsiderObserver);

@@ -124,6 +124,17 @@ TEST(Uplink, AdaptiveFormAndAverageRoundTrip) {
   EXPECT_THROW((void)read_uplink(path), std::runtime_error);
 }
 
+TEST(Uplink, SenderClocksRoundTripAndOlderUplinksLeaveThemOff) {
+  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  ObserverUplink u = make_uplink(s, "SV4");
+  u.tuning.sod.time_tag_senders = true;
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_senders.json";
+  write_uplink(u, path);
+  EXPECT_TRUE(read_uplink(path).tuning.sod.time_tag_senders);
+  ASSERT_TRUE(replace_in_file(path, "\"time_tag_senders\"", "\"time_tag_senders_unknown\""));
+  EXPECT_FALSE(read_uplink(path).tuning.sod.time_tag_senders);
+}
+
 TEST(Uplink, TargetLinesRoundTripAndAnUnknownValueIsNamed) {
   const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
   ObserverUplink u = make_uplink(s, "SV4");

@@ -130,11 +130,12 @@ sod::SodOptions sod_options(const config::SodTuning& t, const astro::QnsElements
   return o;
 }
 
-sod::StateLayout sod_layout(const config::SodTuning& t, int n_targets) {
+sod::StateLayout sod_layout(const config::SodTuning& t, int n_targets, int n_senders) {
   using TT = config::SodTuning::TimeTagEstimation;
   sod::StateLayout layout{n_targets, 0};
   layout.n_time_tag = t.time_tag == TT::kNone ? 0 : t.time_tag == TT::kOffset ? 1 : 2;
   layout.ballistic = t.estimate_ballistic;
+  layout.n_remote_clock = t.time_tag_senders ? n_senders : 0;
   return layout;
 }
 
@@ -144,6 +145,8 @@ Eigen::VectorXd auxiliary_prior_variance(const config::SodTuning& t, const sod::
   if (layout.n_time_tag > 1) var[1] = std::pow(t.time_tag_drift_sigma_ppm * 1e-6, 2);
   for (int k = 0; layout.ballistic && k < layout.n_targets; ++k)
     var[layout.ballistic_index(k) - layout.aux_offset()] = std::pow(t.ballistic_sigma_fraction * nominal_ballistic_m2pkg(), 2);
+  for (int j = 0; j < layout.n_remote_clock; ++j)
+    var[layout.remote_clock_index(j) - layout.aux_offset()] = t.time_tag_senders_sigma_s * t.time_tag_senders_sigma_s;
   return var;
 }
 
@@ -195,6 +198,10 @@ Navigator::Navigator(const config::ObserverUplink& up, const dynamics::ForceMode
       if (id != up.observer.spacecraft) target_ids_.push_back(id);
     }
   }
+  for (const auto& id : up.swarm_ids) {
+    if (id != up.observer.spacecraft) sender_clock_ids_.push_back(id);
+  }
+  time_tag_correction_s_ = up.observer.camera.time_tag_correction_s;
   has_estimate_.assign(target_ids_.size(), false);
   suspect_.assign(target_ids_.size(), false);
   last_fit_t_.assign(target_ids_.size(), up.epoch);
@@ -290,6 +297,7 @@ void Navigator::add_remote(const RemoteBroadcast& b) {
       }
       e.sender_r_eci_m = p->second.r_m;
       e.sender_P_r_m2 = b.P_rv.topLeftCorner<3, 3>();
+      e.sender_v_eci_mps = p->second.v_mps;
       e.sender_position_valid = true;
     }
     queue_.push_back(e);
@@ -323,17 +331,20 @@ Navigator::Event Navigator::bearing_event(astro::TimeTT t, EventKind kind, int t
 
 void Navigator::add_bearing(astro::TimeTT t, int track, const Eigen::Vector3d& u_eci,
                             const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad, int segment) {
-  Event e = bearing_event(t.plus_seconds(up_.observer.camera.time_tag_correction_s), EventKind::kTrackBearing, track,
+  Event e = bearing_event(t.plus_seconds(time_tag_correction_s_), EventKind::kTrackBearing, track,
                           u_eci, q_cam_from_eci, imp_sigma_rad);
   e.segment = segment;
+  e.correction_s = time_tag_correction_s_;
   e.direct = direct_assigned(t, u_eci);
   queue_.push_back(e);
 }
 
 void Navigator::add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u_eci,
                            const Eigen::Quaterniond& q_cam_from_eci, double imp_sigma_rad) {
-  queue_.push_back(bearing_event(t.plus_seconds(up_.observer.camera.time_tag_correction_s), EventKind::kDirectBearing,
-                                target, u_eci, q_cam_from_eci, imp_sigma_rad));
+  Event e = bearing_event(t.plus_seconds(time_tag_correction_s_), EventKind::kDirectBearing, target, u_eci,
+                          q_cam_from_eci, imp_sigma_rad);
+  e.correction_s = time_tag_correction_s_;
+  queue_.push_back(e);
   direct_.emplace_back(t, u_eci);
 }
 
@@ -372,15 +383,16 @@ bool Navigator::direct_assigned(astro::TimeTT t, const Eigen::Vector3d& u_eci) c
   });
 }
 
-astro::Roe Navigator::apriori_at(int k, astro::TimeTT t) const {
-  // The uplinked ROE hold at the uplink epoch; dlambda drifts (sod/apriori.hpp).
-  return astro::Roe::from_vector(sod::apriori_roe_drifted(up_.apriori[static_cast<std::size_t>(k)].roe,
-                                                          a_observer_m_, astro::seconds_between(up_.epoch, t)));
+astro::Roe Navigator::apriori_at(int k, astro::TimeTT t, const astro::QnsElements& observer_osc) const {
+  // The uplinked ROE hold at the uplink epoch; carried with the J2 drift of
+  // mean ROE (sod/apriori.hpp).
+  return astro::Roe::from_vector(sod::apriori_roe_at(up_.apriori[static_cast<std::size_t>(k)].roe, observer_osc,
+                                                     astro::seconds_between(up_.epoch, t)));
 }
 
-astro::Mat6 Navigator::apriori_covariance_at(int k, astro::TimeTT t) const {
-  return sod::apriori_covariance_drifted(up_.apriori[static_cast<std::size_t>(k)].P_roe, a_observer_m_,
-                                         astro::seconds_between(up_.epoch, t));
+astro::Mat6 Navigator::apriori_covariance_at(int k, astro::TimeTT t, const astro::QnsElements& observer_osc) const {
+  return sod::apriori_covariance_at(up_.apriori[static_cast<std::size_t>(k)].P_roe, observer_osc,
+                                    astro::seconds_between(up_.epoch, t));
 }
 
 void Navigator::initialise(const sod::GnssMeasurement& g) {
@@ -417,7 +429,7 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
   Eigen::VectorXd aux;
   Eigen::MatrixXd P_aux;
   if (!filter_) {
-    const sod::StateLayout layout = sod_layout(up_.tuning.sod, n);
+    const sod::StateLayout layout = sod_layout(up_.tuning.sod, n, static_cast<int>(sender_clock_ids_.size()));
     // The onboard model's expected error on the observer's own orbit (mode 4
     // has no GNSS to correct it).
     sod_opt_ = sod_options(up_.tuning.sod, obs);
@@ -439,6 +451,8 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
   P.topLeftCorner<6, 6>() = P_obs;
   if (aux.size() > 0) P.bottomRightCorner(aux.size(), aux.size()) = P_aux;
   int from_apriori = 0, from_bod = 0;
+  const bool first = apriori_mean_.empty();
+  if (first) apriori_mean_.assign(static_cast<std::size_t>(n), std::nullopt);
   for (int k = 0; k < n; ++k) {
     astro::Vec6 roe;
     astro::Mat6 Pk;
@@ -453,6 +467,16 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
       ++from_bod;
     } else {
       ++from_apriori;
+    }
+    if (first && has_estimate_[static_cast<std::size_t>(k)] && !last_bod_[static_cast<std::size_t>(k)]) {
+      try {
+        const astro::QnsElements obs_mean = dynamics::mean_from_osculating(obs);
+        const astro::QnsElements target = astro::qns_from_roe(obs, astro::Roe::from_vector(roe));
+        const astro::Vec6 roe_mean = astro::roe_from_qns(obs_mean, dynamics::mean_from_osculating(target)).as_vector();
+        apriori_mean_[static_cast<std::size_t>(k)] = BodEstimate{t0, obs_mean, roe_mean, Pk};
+      } catch (const std::exception&) {
+        // the mean model refuses these elements: later restarts drift the osculating a-priori
+      }
     }
     roes.push_back(astro::Roe::from_vector(roe));
     P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = Pk;
@@ -495,7 +519,18 @@ bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& 
   return samus.unscented_prediction(-1, mean, P, los_eci_of, observer, out);
 }
 
-void Navigator::process(const Event& e, const imp::Samus& samus) {
+void Navigator::process(const Event& queued, const imp::Samus& samus) {
+  // A local bearing queued before the own-clock check changed the time-tag
+  // correction takes the new one.
+  Event rebased;
+  const bool stale = (queued.kind == EventKind::kTrackBearing || queued.kind == EventKind::kDirectBearing) &&
+                     queued.correction_s != time_tag_correction_s_;
+  if (stale) {
+    rebased = queued;
+    rebased.t = queued.t.plus_seconds(time_tag_correction_s_ - queued.correction_s);
+    rebased.correction_s = time_tag_correction_s_;
+  }
+  const Event& e = stale ? rebased : queued;
   if (e.kind == EventKind::kTrackBearing && next_bod_) {
     // Bounded: the latest batch_orbits orbits (at the longest LEO period) of every track.
     const double keep_s = up_.tuning.bod.batch_orbits * 6400.0;
@@ -693,6 +728,12 @@ void Navigator::report_aux() {
                   x[L.ballistic_index(k)], sd(L.ballistic_index(k)));
     m += buf;
   }
+  for (int j = 0; j < L.n_remote_clock; ++j) {
+    std::snprintf(buf, sizeof buf, "%s time-tag offset of %s's camera %+.4f s (1-sigma %.4f)",
+                  L.n_time_tag > 0 || L.ballistic || j > 0 ? ";" : "", sender_clock_ids_[static_cast<std::size_t>(j)].c_str(),
+                  x[L.remote_clock_index(j)], sd(L.remote_clock_index(j)));
+    m += buf;
+  }
   messages_.push_back(m);
 }
 
@@ -718,6 +759,11 @@ void Navigator::process_remote(const std::vector<Event>& group) {
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
     if (k != from && has_estimate_[static_cast<std::size_t>(k)]) bodies.push_back(k);
   }
+  int sender_clock = -1;
+  if (f.layout().n_remote_clock > 0) {
+    const auto c = std::find(sender_clock_ids_.begin(), sender_clock_ids_.end(), sender);
+    if (c != sender_clock_ids_.end()) sender_clock = static_cast<int>(c - sender_clock_ids_.begin());
+  }
   auto measurement = [&](const Event& e, int to) {
     L m;
     m.t = e.t;
@@ -725,6 +771,8 @@ void Navigator::process_remote(const std::vector<Event>& group) {
     m.to = to;
     m.from_r_eci_m = e.sender_r_eci_m;
     m.from_P_r_m2 = e.sender_P_r_m2;
+    m.from_v_eci_mps = e.sender_v_eci_mps;
+    m.sender_clock = sender_clock;
     m.los_eci = e.u_eci;
     m.sigma_rad = bearing_sigma(e.imp_sigma_rad);
     return m;
@@ -798,8 +846,85 @@ bool Navigator::blended(sod::SodFilter& f, int k, astro::TimeTT t) {
   return false;
 }
 
+bool Navigator::check_own_clock() {
+  auto& f = *filter_;
+  const auto& L = f.layout();
+  if (L.n_remote_clock < 2 || reinit_pending_) return false;
+  std::vector<int> known;
+  double sum_w = 0.0, sum_wd = 0.0, lo = 1e300, hi = -1e300;
+  for (int j = 0; j < L.n_remote_clock; ++j) {
+    const int i = L.remote_clock_index(j);
+    const double d = f.state()[i], sd = std::sqrt(f.covariance()(i, i));
+    if (!(sd <= opt_.clock_known_s)) continue;  // this sender's bearings have not told yet
+    if (!(std::abs(d) >= opt_.clock_min_offset_s && std::abs(d) >= 5.0 * sd)) return false;  // one agrees with us
+    known.push_back(j);
+    sum_w += 1.0 / (sd * sd);
+    sum_wd += d / (sd * sd);
+    lo = std::min(lo, d);
+    hi = std::max(hi, d);
+  }
+  if (known.size() < 2) return false;
+  const double mean = sum_wd / sum_w;
+  if (!(lo * hi > 0.0) || !(hi - lo <= 0.5 * std::abs(mean))) return false;
+  // Every clock it hears from is off by the same amount: its own is.
+  time_tag_correction_s_ += mean;
+  std::string who;
+  char buf[800];
+  for (const int j : known) {
+    const int i = L.remote_clock_index(j);
+    std::snprintf(buf, sizeof buf, "%s%s %+.4f s (1-sigma %.4f)", who.empty() ? "" : ", ",
+                  sender_clock_ids_[static_cast<std::size_t>(j)].c_str(), f.state()[i],
+                  std::sqrt(f.covariance()(i, i)));
+    who += buf;
+  }
+  // The senders' clocks keep what was learnt of them relative to each other,
+  // now relative to the corrected clock. Those estimates were fitted against
+  // orbits seen with the wrong clock: the correction takes three times the
+  // weighted mean's 1-sigma (the own offset state, if any, is opened by it),
+  // and each sender's clock also its distance from the consensus.
+  const double sigma_correction = 3.0 / std::sqrt(sum_w);
+  for (int j = 0; j < L.n_remote_clock; ++j) {
+    const int i = L.remote_clock_index(j);
+    const bool was_known = std::find(known.begin(), known.end(), j) != known.end();
+    const double away = was_known ? f.state()[i] - mean : 0.0;
+    f.shift_auxiliary(i, -mean);
+    f.inflate_auxiliary(i, sigma_correction * sigma_correction + away * away);
+  }
+  if (L.n_time_tag > 0) f.inflate_auxiliary(L.time_tag_offset(), sigma_correction * sigma_correction);
+  // The relative orbits and BOD's batches were fitted with the wrong clock.
+  history_.clear();
+  tracks_.clear();
+  int restarted = 0, dropped = 0;
+  for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+    if (!has_estimate_[k]) continue;
+    last_bod_[k].reset();
+    manoeuvre_flagged_[k].reset();
+    pre_flag_[k].reset();
+    suspect_[k] = false;
+    astro::Vec6 roe;
+    astro::Mat6 P;
+    if (restart_estimate(static_cast<int>(k), f.epoch(), f.observer(), roe, P)) {
+      f.reinitialize_target(static_cast<int>(k), roe, P);
+      ++restarted;
+    } else {
+      has_estimate_[k] = false;
+      ++dropped;
+    }
+  }
+  std::snprintf(buf, sizeof buf,
+                "SOD: own camera clock: the clocks of every sender known (%s) appear off by the same amount, so "
+                "this observer's camera time tags are the likelier culprit; time-tag correction now %+.4f s (%+.4f "
+                "from the check, 1-sigma %.4f%s); %d targets re-initialised from the ground a-priori, %d dropped "
+                "until BOD initialises them again",
+                who.c_str(), time_tag_correction_s_, mean, sigma_correction,
+                L.n_time_tag > 0 ? ", added to its offset state" : ", not estimated further", restarted, dropped);
+  messages_.push_back(buf);
+  return true;
+}
+
 void Navigator::check_health() {
   auto& f = *filter_;
+  if (check_own_clock()) return;
   sod::HealthReport h = f.health();
   if (h.filter.condition == sod::HealthCondition::kInconsistent && !reinit_pending_) {
     // The observer's GNSS fixes no longer fit its orbit: it manoeuvred
@@ -914,8 +1039,24 @@ bool Navigator::restart_estimate(int k, astro::TimeTT t, const astro::QnsElement
     }
   }
   if (static_cast<std::size_t>(k) < up_.apriori.size()) {
-    roe = apriori_at(k, t).as_vector();
-    P = apriori_covariance_at(k, t);
+    // Later than the first initialisation: the a-priori as mean ROE then,
+    // carried with the J2 STM and made osculating again (the osculating ROE
+    // of a 155 km along-track pair swing by ~400 m over an orbit with J2's
+    // short-period terms, far beyond the a-priori's 1-sigma in dex, dey).
+    const auto& ref = apriori_mean_.size() > static_cast<std::size_t>(k) ? apriori_mean_[static_cast<std::size_t>(k)]
+                                                                         : std::optional<BodEstimate>();
+    if (ref && t != ref->t) {
+      try {
+        const OsculatingRoe o = osculating_at(*ref, t, observer_osc);
+        roe = o.roe;
+        P = o.P;
+        return true;
+      } catch (const std::exception&) {
+        // the mean model refuses the observer's elements: fall through
+      }
+    }
+    roe = apriori_at(k, t, observer_osc).as_vector();
+    P = apriori_covariance_at(k, t, observer_osc);
     return true;
   }
   return false;
@@ -1618,7 +1759,7 @@ std::vector<imp::TargetPrediction> Navigator::predictions(astro::TimeTT t, const
     // tags: predicted at t, SOD's prediction was 3.9e-4 rad (n * 0.4 s) off
     // every candidate, beyond the aided gate, and SV2's tracks broke every
     // third of an orbit).
-    const astro::TimeTT t_tag = t.plus_seconds(up_.observer.camera.time_tag_correction_s);
+    const astro::TimeTT t_tag = t.plus_seconds(time_tag_correction_s_);
     const astro::TimeTT t_image = t_tag.plus_seconds(-time_tag_offset_at(t_tag));
     if (!f && !(f = predicted_to(t_image))) return out;
     imp::TargetPrediction p;

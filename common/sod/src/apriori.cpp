@@ -7,6 +7,7 @@
 
 #include "artms/astro/elements.hpp"
 #include "artms/astro/roe.hpp"
+#include "artms/dynamics/j2_mean.hpp"
 
 namespace artms::sod {
 
@@ -75,6 +76,33 @@ astro::Mat6 apriori_covariance_drifted(const astro::Mat6& P_roe, double a_observ
   astro::Mat6 Phi = astro::Mat6::Identity();
   Phi(1, 0) = -1.5 * n * dt_s;
   return Phi * P_roe * Phi.transpose();
+}
+
+astro::Vec6 apriori_roe_drifted(const astro::Vec6& roe, const astro::QnsElements& observer_mean, double dt_s) {
+  return dynamics::roe_stm_j2(observer_mean, dt_s) * roe;
+}
+
+astro::Mat6 apriori_covariance_drifted(const astro::Mat6& P_roe, const astro::QnsElements& observer_mean, double dt_s) {
+  const astro::Mat6 Phi = dynamics::roe_stm_j2(observer_mean, dt_s);
+  return Phi * P_roe * Phi.transpose();
+}
+
+namespace {
+astro::QnsElements mean_or_osculating(const astro::QnsElements& osc) {
+  try {
+    return dynamics::mean_from_osculating(osc);
+  } catch (const std::exception&) {
+    return osc;
+  }
+}
+}  // namespace
+
+astro::Vec6 apriori_roe_at(const astro::Vec6& roe, const astro::QnsElements& observer_osc, double dt_s) {
+  return dt_s == 0.0 ? roe : apriori_roe_drifted(roe, mean_or_osculating(observer_osc), dt_s);
+}
+
+astro::Mat6 apriori_covariance_at(const astro::Mat6& P_roe, const astro::QnsElements& observer_osc, double dt_s) {
+  return dt_s == 0.0 ? P_roe : apriori_covariance_drifted(P_roe, mean_or_osculating(observer_osc), dt_s);
 }
 
 }  // namespace artms::sod

@@ -193,6 +193,7 @@ SodFilter::SodFilter(const dynamics::ForceModel& forces,
   if (layout_.n_aux < 0) throw std::invalid_argument("StateLayout.n_aux: must be >= 0");
   if (layout_.n_time_tag < 0 || layout_.n_time_tag > 2)
     throw std::invalid_argument("StateLayout.n_time_tag: must be 0, 1 or 2");
+  if (layout_.n_remote_clock < 0) throw std::invalid_argument("StateLayout.n_remote_clock: must be >= 0");
   const int n = layout_.size();
   require(n + options_.ukf_kappa > 0.0, "ukf_kappa", "n + ukf_kappa must be > 0 (n = state size)");
   ukf_weights(n, options_, gamma_, wm_, wc_);
@@ -244,6 +245,8 @@ void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
   if (layout_.n_time_tag > 1) q_nominal_[layout_.time_tag_drift()] = options_.q_time_tag_drift_ps;
   if (layout_.ballistic)
     q_nominal_.segment(layout_.ballistic_offset(), layout_.n_targets).setConstant(options_.q_ballistic_m4pkg2ps);
+  if (layout_.n_remote_clock > 0)
+    q_nominal_.segment(layout_.remote_clock_offset(), layout_.n_remote_clock).setConstant(options_.q_time_tag_offset_s2ps);
   q_ = q_nominal_;
   Q_rate_ = q_nominal_.asDiagonal();
   Q_average_ = Q_rate_;
@@ -690,8 +693,12 @@ UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas
   }
   s.target = meas.to >= 0 ? meas.to : meas.from;
   if (!is_finite_positive(meas.sigma_rad) || !meas.los_eci.allFinite() || !(meas.los_eci.norm() > 0.0) ||
-      !meas.from_r_eci_m.allFinite() || !meas.from_P_r_m2.allFinite()) {
+      !meas.from_r_eci_m.allFinite() || !meas.from_v_eci_mps.allFinite() || !meas.from_P_r_m2.allFinite()) {
     s.why = "line of sight, sigma or remote position not finite/positive";
+    return s;
+  }
+  if (meas.sender_clock < -1 || meas.sender_clock >= layout_.n_remote_clock) {
+    s.why = "sender clock index out of range";
     return s;
   }
   if (!advance_to(meas.t, s)) return s;
@@ -704,12 +711,12 @@ UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas
   R_v.row(2) = z.transpose();
   const double gm = gm_m3ps2_;
   const StateLayout lay = layout_;
-  const auto position = [gm, lay](const VectorXd& xs, int body) -> Vec3 {
+  const auto state_of = [gm, lay](const VectorXd& xs, int body) -> astro::StateVector {
     const QnsElements obs = QnsElements::from_vector(xs.head<6>());
-    if (body == L::kObserver) return astro::cartesian_from_qns(obs, gm).r_m;
-    const QnsElements t = astro::qns_from_roe(obs, Roe::from_vector(xs.segment<6>(lay.target_offset(body))));
-    return astro::cartesian_from_qns(t, gm).r_m;
+    if (body == L::kObserver) return astro::cartesian_from_qns(obs, gm);
+    return astro::cartesian_from_qns(astro::qns_from_roe(obs, Roe::from_vector(xs.segment<6>(lay.target_offset(body)))), gm);
   };
+  const auto position = [&state_of](const VectorXd& xs, int body) -> Vec3 { return state_of(xs, body).r_m; };
   MeasurementModel model;
   const int hi = std::max(meas.from, meas.to);
   model.cutoff = hi >= 0 ? layout_.target_offset(hi) + StateLayout::kBlock : StateLayout::kBlock;
@@ -719,11 +726,27 @@ UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas
     model.consider = StateLayout::kBlock;
   }
   const int from = meas.from, to = meas.to;
-  const Vec3 r_ext = meas.from_r_eci_m;
-  model.h = [=](const VectorXd& xs) -> VectorXd {
-    const Vec3 a = from == L::kExternal ? r_ext : position(xs, from);
-    return astro::bearing_from_eci(a, position(xs, to), R_v).as_vector();
-  };
+  const Vec3 r_ext = meas.from_r_eci_m, v_ext = meas.from_v_eci_mps;
+  const int i_clock = meas.sender_clock >= 0 ? layout_.remote_clock_index(meas.sender_clock) : -1;
+  if (i_clock >= 0) {
+    model.cutoff = i_clock + 1;
+    model.h = [=](const VectorXd& xs) -> VectorXd {
+      // The sender's image saw both bodies at t - dt (first order in its clock's offset dt).
+      const double dt = xs[i_clock];
+      const astro::StateVector b = state_of(xs, to);
+      Vec3 a = r_ext - dt * v_ext;
+      if (from != L::kExternal) {
+        const astro::StateVector sa = state_of(xs, from);
+        a = sa.r_m - dt * sa.v_mps;
+      }
+      return astro::bearing_from_eci(a, b.r_m - dt * b.v_mps, R_v).as_vector();
+    };
+  } else {
+    model.h = [=](const VectorXd& xs) -> VectorXd {
+      const Vec3 a = from == L::kExternal ? r_ext : position(xs, from);
+      return astro::bearing_from_eci(a, position(xs, to), R_v).as_vector();
+    };
+  }
   MatrixXd Rm = MatrixXd::Identity(2, 2) * meas.sigma_rad * meas.sigma_rad;
   if (from == L::kExternal) {
     const astro::Mat23 J = astro::bearing_jacobian_target_eci(r_ext, position(x_, to), R_v);
@@ -987,6 +1010,13 @@ void SodFilter::inflate_auxiliary(int index, double add_variance) {
   if (!std::isfinite(add_variance) || add_variance < 0.0)
     throw std::invalid_argument("SodFilter::inflate_auxiliary: variance must be finite and >= 0");
   P_(index, index) += add_variance;
+}
+
+void SodFilter::shift_auxiliary(int index, double delta) {
+  if (index < layout_.aux_offset() || index >= layout_.size())
+    throw std::invalid_argument("SodFilter::shift_auxiliary: index outside the auxiliary block");
+  if (!std::isfinite(delta)) throw std::invalid_argument("SodFilter::shift_auxiliary: delta must be finite");
+  x_[index] += delta;
 }
 
 double SodFilter::recent_mean_gnss_nis() const {

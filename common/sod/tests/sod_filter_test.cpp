@@ -5,6 +5,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "artms/dynamics/j2_mean.hpp"
 #include "artms/sod/apriori.hpp"
 #include "artms/sod/sod_filter.hpp"
 #include "artms/testing/testing.hpp"
@@ -469,6 +470,31 @@ TEST(SodApriori, DlambdaDriftMatchesPropagatedSemiMajorAxisError) {
   EXPECT_NEAR(ap.sigma_a_roe_m[1], std::abs(a_dl_m), 1e-3 * std::abs(a_dl_m));
   // The correlation has the sign of the drift: -1.5 n da t.
   EXPECT_NEAR(ap.P_a_roe_m2(0, 1), a_da_m * a_dl_m, 1e-3 * std::abs(a_da_m * a_dl_m));
+}
+
+// Carried later in a run (a restart from the ground a-priori), the relative
+// eccentricity vector turns at the perigee's J2 rate: 3.5 h turn Table 2's
+// 700 m PSE vector by ~6 m, twelve times the 0.5 m the Keplerian drift
+// leaves at its place. At dt = 0 the uplinked values are used as they are.
+TEST(SodApriori, CarriedWithTheJ2DriftTheEccentricityVectorTurns) {
+  const astro::QnsElements o = testing::observer_at_start();
+  const Vec6 roe = (Vec6() << 23, -52266, -471, -523, 35, 1811).finished() / o.a_m;
+  const Mat6 P = Mat6::Identity() * std::pow(30.0 / o.a_m, 2);
+  EXPECT_EQ(apriori_roe_at(roe, o, 0.0), roe);
+  EXPECT_EQ(apriori_covariance_at(P, o, 0.0), P);
+  const double dt = 3.5 * 3600.0;
+  const Vec6 j2 = apriori_roe_at(roe, o, dt), kepler = apriori_roe_drifted(roe, o.a_m, dt);
+  const double w_dot = dynamics::j2_secular_rates(dynamics::mean_from_osculating(o)).argp_dot_radps;
+  const double turned = std::atan2(j2[3], j2[2]) - std::atan2(roe[3], roe[2]);
+  EXPECT_NEAR(turned, w_dot * dt, 0.05 * std::abs(w_dot * dt));
+  EXPECT_GT(o.a_m * std::hypot(j2[2] - kepler[2], j2[3] - kepler[3]), 4.0);  // m
+  // The along-track drift kept (-1.5 n da dt = -490 m), and J2's own part of it from dix (~1 m).
+  EXPECT_NEAR(o.a_m * (kepler[1] - roe[1]), -1.5 * std::sqrt(astro::kGmEarth_m3ps2 / std::pow(o.a_m, 3)) * 23.0 * dt,
+              1e-6);
+  EXPECT_NEAR(o.a_m * j2[1], o.a_m * kepler[1], 5.0);
+  const Mat6 Pj = apriori_covariance_at(P, o, dt);
+  EXPECT_TRUE(Pj.isApprox(Pj.transpose(), 1e-12));
+  EXPECT_GT(Pj(1, 1), P(1, 1));
 }
 
 TEST(SodApriori, GrowsWithAgeAndDrawsMatchCovariance) {

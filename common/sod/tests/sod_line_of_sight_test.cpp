@@ -186,6 +186,91 @@ TEST(SodLineOfSight, TargetToTargetLineKeepsTheObserverAsAConsiderParameter) {
   EXPECT_NE(cons.state().head<6>(), g.x.head<6>());
 }
 
+TEST(SodLineOfSight, ARemoteObserversClockOffsetIsEstimatedAndKeptOutOfTheOrbits) {
+  // Target 0 is also an observer. When its camera tags its images 0.5 s
+  // late, its lines of sight to target 1 and to this observer show the bodies
+  // as they were 0.5 s before the tag (the formation turned by n dt = 113").
+  // This observer's own bearings (tags right) and GNSS come every minute, 8
+  // orbits. With a clock state for the sender (StateLayout::n_remote_clock)
+  // the offset is found to 0.02 s within 6 orbits and the relative orbits end
+  // where the same filter ends when the sender's tags are right; taken as
+  // right, the late lines are refused by the gate (or, let through, would
+  // turn the formation).
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  const auto g = shifted_initial_guess(observer_at_start(), a_roe, 0.05, 100.0);
+  const double s = 5 * astro::kArcsecToRad;
+  struct Run {
+    Vec6 err[2], sigma[2];
+    double dt_6_orbits = 0.0, sigma_dt = 0.0;
+    int used = 0, gated = 0;
+  };
+  const auto run = [&](double late_s, bool clock) {
+    StateLayout layout{2, 0};
+    layout.n_remote_clock = clock ? 1 : 0;
+    SodFilter f(j2_forces(), {}, {}, layout, SodOptions{});
+    const int n = layout.size();
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+    x.head(g.x.size()) = g.x;
+    Eigen::MatrixXd P = Eigen::MatrixXd::Identity(n, n);  // the clock: 1 s
+    P.topLeftCorner(g.x.size(), g.x.size()) = g.P;
+    f.initialize(kT0, x, P);
+    Truth truth(kT0, observer_at_start(), a_roe), seen(kT0, observer_at_start(), a_roe);
+    Run r;
+    for (int k = 1; k <= 8 * 95; ++k) {
+      const TimeTT t = kT0.plus_seconds(60.0 * k);
+      truth.advance_to(t);
+      seen.advance_to(t.plus_seconds(-late_s));
+      EXPECT_TRUE(f.update_gnss(truth.gnss(2.0, 0.01, false, nullptr)).usable);
+      for (int j = 0; j < 2; ++j) f.update_bearing(truth.bearing(j, s, 0.0, nullptr));
+      for (const int to : {1, L::kObserver}) {
+        L m;
+        m.t = t;
+        m.from = 0;
+        m.to = to;
+        m.los_eci = (to == 1 ? seen.target_eci(1).r_m : seen.observer_eci().r_m) - seen.target_eci(0).r_m;
+        m.sigma_rad = s;
+        m.sender_clock = clock ? 0 : -1;
+        const auto u = f.update_line_of_sight(m);
+        r.used += u.usable ? 1 : 0;
+        r.gated += u.gated ? 1 : 0;
+      }
+      if (clock && k == 6 * 95) {
+        r.dt_6_orbits = f.state()[layout.remote_clock_index(0)];
+        r.sigma_dt = std::sqrt(f.covariance()(n - 1, n - 1));
+      }
+    }
+    for (int j = 0; j < 2; ++j) {
+      r.err[j] = f.a_roe_m(j) - truth.a_roe_m(j);
+      r.sigma[j] = f.a_roe_sigma_m(j);
+    }
+    return r;
+  };
+  const Run late = run(0.5, true), right = run(0.0, true), plain = run(0.5, false);
+  std::printf("remote clock: offset %.4f s (1-sigma %.4f) after 6 orbits; remote lines used %d, refused %d; "
+              "without the clock state used %d, refused %d\n",
+              late.dt_6_orbits, late.sigma_dt, late.used, late.gated, plain.used, plain.gated);
+  EXPECT_NEAR(late.dt_6_orbits, 0.5, 0.02);
+  EXPECT_LT(late.sigma_dt, 0.02);
+  EXPECT_NEAR(right.dt_6_orbits, 0.0, 0.02);
+  EXPECT_GT(late.used, 1400);  // of 1520
+  for (int j = 0; j < 2; ++j) {
+    const Vec6 d = (late.err[j] - right.err[j]).cwiseQuotient(right.sigma[j]);
+    std::printf("target %d: a*dlambda error %.1f m (1-sigma %.1f) with the late sender, %.1f m (%.1f) with its tags "
+                "right\n", j, late.err[j][1], late.sigma[j][1], right.err[j][1], right.sigma[j][1]);
+    EXPECT_LT(d.cwiseAbs().maxCoeff(), 0.1) << j;
+  }
+  EXPECT_GT(plain.gated, plain.used);
+  // A clock index the layout does not have is refused with a reason.
+  SodFilter f = make_filter(2);
+  f.initialize(kT0, g.x, g.P);
+  L bad = first_to_second(Truth(kT0, observer_at_start(), a_roe), 5.0);
+  bad.sender_clock = 0;
+  const auto u = f.update_line_of_sight(bad);
+  EXPECT_FALSE(u.usable);
+  EXPECT_EQ(u.why, "sender clock index out of range");
+}
+
 TEST(SodUnderweighting, LimitsTheCollapseOfAWidePriorAndIsValidated) {
   // A stale prior (5 % in a*dlambda, 100 m elsewhere) and a 2" bearing: with
   // beta = 0.5 the posterior 1-sigma of every ROE stays above what the plain

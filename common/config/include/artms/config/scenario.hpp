@@ -208,6 +208,10 @@ struct SodTuning {
   TimeTagEstimation time_tag = TimeTagEstimation::kNone;
   double time_tag_sigma_s = 1.0;          // initial 1-sigma of the offset
   double time_tag_drift_sigma_ppm = 100.0;  // initial 1-sigma of the drift
+  // One time-tag offset per other spacecraft of the swarm, estimated from the
+  // bearings it broadcasts, with initial 1-sigma time_tag_senders_sigma_s.
+  bool time_tag_senders = false;
+  double time_tag_senders_sigma_s = 1.0;
   bool estimate_ballistic = false;
   // Initial 1-sigma of dB over the nominal Cd A/m: the effective dB is the
   // true one times the density's error, and Harris-Priester's mean table is

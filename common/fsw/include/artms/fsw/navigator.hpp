@@ -100,6 +100,14 @@ struct NavigatorOptions {
   int lost_after_steps = 10;
   double lost_min_d2 = 100.0;  // far beyond association_max_d2: a jump, not a slightly off prediction
   double lost_max_d2 = 1e7;
+  // The own-clock check (with tuning.sod.time_tag.senders): when at least
+  // two senders' clocks are known (1-sigma <= clock_known_s) and all appear
+  // off by the same amount (each beyond clock_min_offset_s and 5 sigma, of
+  // one sign, spread within half their mean), this observer's own camera
+  // clock is the likelier culprit: its time-tag correction takes the
+  // offset and its relative orbits start again (docs/sod.md).
+  double clock_known_s = 0.02;
+  double clock_min_offset_s = 0.02;
 };
 
 // SOD's options from the uplinked telecommands, as the navigator builds its
@@ -111,8 +119,9 @@ sod::SodOptions sod_options(const config::SodTuning& tuning);
 // built-in one.
 sod::SodOptions sod_options(const config::SodTuning& tuning, const astro::QnsElements& observer);
 // SOD's state layout for n_targets targets and the auxiliary states the
-// tuning enables (camera time tag, differential ballistic coefficients).
-sod::StateLayout sod_layout(const config::SodTuning& tuning, int n_targets);
+// tuning enables (camera time tag, differential ballistic coefficients and,
+// with time_tag_senders, the clocks of n_senders remote observers).
+sod::StateLayout sod_layout(const config::SodTuning& tuning, int n_targets, int n_senders = 0);
 // The auxiliary states' initial variances (their uplinked 1-sigma), in the
 // layout's auxiliary order.
 Eigen::VectorXd auxiliary_prior_variance(const config::SodTuning& tuning, const sod::StateLayout& layout);
@@ -260,6 +269,8 @@ class Navigator {
     // kRemoteBearing: the sender (index into senders_) and its position estimate at t.
     astro::Vec3 sender_r_eci_m = astro::Vec3::Zero();
     astro::Mat3 sender_P_r_m2 = astro::Mat3::Zero();
+    astro::Vec3 sender_v_eci_mps = astro::Vec3::Zero();
+    double correction_s = 0.0;  // local bearings: the time-tag correction in their t
     bool sender_position_valid = false;
     // kRemoteBearing: which silence of the sender's link it follows (LinkWatch) and
     // the broadcast's number after it (0: not after a silence).
@@ -316,6 +327,11 @@ class Navigator {
   NavigatorOptions opt_;
   sod::SodOptions sod_opt_;
   std::vector<std::string> target_ids_;
+  // Every other spacecraft of the swarm: the order of the remote clock states.
+  std::vector<std::string> sender_clock_ids_;
+  double time_tag_correction_s_ = 0.0;  // the uplinked one, plus what the own-clock check found
+  // Each target's a-priori as mean ROE at the first initialisation (restart_estimate).
+  std::vector<std::optional<BodEstimate>> apriori_mean_;
   std::optional<sod::SodFilter> filter_;
   bool reinit_pending_ = false;
   double a_observer_m_ = 6.9e6;  // for the a-priori drift; set from the first GNSS fix
@@ -424,10 +440,12 @@ class Navigator {
   void initialise_angles_only();  // mode 4: the uplinked coarse orbit, or the own estimate after a failure
   void initialise_at(astro::TimeTT t0, const astro::QnsElements& observer, Eigen::Matrix<double, 6, 6> P_observer_qns,
                      const std::string& from);
-  [[nodiscard]] astro::Roe apriori_at(int k, astro::TimeTT t) const;
-  // Its covariance carried along the same drift: Phi P Phi^T, Phi(dlambda, da) = -1.5 n dt.
-  [[nodiscard]] astro::Mat6 apriori_covariance_at(int k, astro::TimeTT t) const;
+  [[nodiscard]] astro::Roe apriori_at(int k, astro::TimeTT t, const astro::QnsElements& observer_osc) const;
+  // Its covariance carried along the same drift: Phi P Phi^T, Phi the J2 STM of mean ROE.
+  [[nodiscard]] astro::Mat6 apriori_covariance_at(int k, astro::TimeTT t, const astro::QnsElements& observer_osc) const;
   void check_health();
+  // The own-clock check (NavigatorOptions::clock_known_s); true when it corrected the clock.
+  bool check_own_clock();
   // Is target k predicted (filter f, time-updated to t) within
   // blend_separation_px of another target?
   bool blended(sod::SodFilter& f, int k, astro::TimeTT t);

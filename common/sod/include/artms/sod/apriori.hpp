@@ -13,6 +13,7 @@
 
 #include <random>
 
+#include "artms/astro/elements.hpp"
 #include "artms/astro/frames.hpp"
 
 namespace artms::sod {
@@ -52,6 +53,20 @@ astro::Vec6 draw_apriori_error_a_roe_m(const AprioriRoe& apriori, std::mt19937_6
 // what the observer starts from, and re-initialises from.
 astro::Vec6 apriori_roe_drifted(const astro::Vec6& roe, double a_observer_m, double dt_s);
 astro::Mat6 apriori_covariance_drifted(const astro::Mat6& P_roe, double a_observer_m, double dt_s);
+// The same carried with the J2 state transition matrix of mean ROE (Koenig,
+// Guffanti & D'Amico 2017; dynamics::roe_stm_j2) for the observer's mean
+// elements: besides the along-track drift, the relative eccentricity vector
+// turns at the argument of perigee's rate (~1.6 m per hour for the
+// Starling PSE's 700 m) and diy drifts with dix. The uplinked osculating ROE
+// keep the short-period J2 part of their epoch.
+astro::Vec6 apriori_roe_drifted(const astro::Vec6& roe, const astro::QnsElements& observer_mean, double dt_s);
+astro::Mat6 apriori_covariance_drifted(const astro::Mat6& P_roe, const astro::QnsElements& observer_mean, double dt_s);
+// What the navigator starts and re-initialises from: the J2 drift above for
+// the observer's mean elements (dynamics::mean_from_osculating of
+// observer_osc; its osculating elements where the mean model refuses them),
+// the uplinked values themselves at dt_s = 0.
+astro::Vec6 apriori_roe_at(const astro::Vec6& roe, const astro::QnsElements& observer_osc, double dt_s);
+astro::Mat6 apriori_covariance_at(const astro::Mat6& P_roe, const astro::QnsElements& observer_osc, double dt_s);
 
 // Navigation mode 4's coarse ground orbit (paper, "Absolute Navigation":
 // "artificially degraded orbit knowledge"): its error is the quasi-nonsingular

@@ -201,8 +201,13 @@ struct LineOfSightMeasurement {
   TimeTT t;
   int from = kExternal;
   int to = 0;
-  Vec3 from_r_eci_m = Vec3::Zero();  // kExternal only
-  Mat3 from_P_r_m2 = Mat3::Zero();   // kExternal only
+  Vec3 from_r_eci_m = Vec3::Zero();    // kExternal only
+  Vec3 from_v_eci_mps = Vec3::Zero();  // kExternal only, with sender_clock
+  Mat3 from_P_r_m2 = Mat3::Zero();     // kExternal only
+  // The sender's camera clock: index j of StateLayout::remote_clock_index, or
+  // -1 when its time tags are taken as right. With j the image saw both
+  // bodies at t - dt_j.
+  int sender_clock = -1;
   Vec3 los_eci = Vec3::UnitZ();
   double sigma_rad = 0.0;
 };
@@ -346,6 +351,9 @@ class SodFilter {
   // Throws std::invalid_argument for an index outside the auxiliary block or
   // a variance that is not finite and >= 0.
   void inflate_auxiliary(int index, double add_variance);
+  // Adds delta to the auxiliary state `index` (a change of its reference, as
+  // when the navigator moves a clock offset into its own time-tag correction).
+  void shift_auxiliary(int index, double delta);
   // Mean NIS of the last health.gnss_nis_window GNSS fixes (NaN until full),
   // and clearing that window (after the navigator answered check 5).
   [[nodiscard]] double recent_mean_gnss_nis() const;

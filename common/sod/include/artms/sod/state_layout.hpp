@@ -10,7 +10,10 @@
 //          order: n_aux generic states (constant, random walk); the observer's
 //          camera time-tag offset (s) and, with n_time_tag = 2, its drift
 //          (s/s); with `ballistic`, one differential ballistic coefficient
-//          per target (m^2/kg, the target's Cd A/m minus the onboard nominal).
+//          per target (m^2/kg, the target's Cd A/m minus the onboard nominal);
+//          then n_remote_clock time-tag offsets (s), one per remote observer
+//          whose bearings arrive over the ISL (its camera's clock as this
+//          filter sees it).
 // The observer block comes first so that the lower-triangular Cholesky factor
 // leaves the observer untouched by every sigma point built from a target
 // column (Stacey & D'Amico 2018): see SodFilter::time_update.
@@ -25,6 +28,7 @@ struct StateLayout {
   int n_aux = 0;
   int n_time_tag = 0;      // 0: none, 1: offset, 2: offset and drift
   bool ballistic = false;  // one differential ballistic coefficient per target
+  int n_remote_clock = 0;  // time-tag offsets of remote observers' cameras
 
   static constexpr int kBlock = 6;
   // Observer element indices inside its block (QnsElements::as_vector order).
@@ -45,7 +49,12 @@ struct StateLayout {
     assert(ballistic && k >= 0 && k < n_targets);
     return ballistic_offset() + k;
   }
-  [[nodiscard]] constexpr int size() const { return ballistic_offset() + (ballistic ? n_targets : 0); }
+  [[nodiscard]] constexpr int remote_clock_offset() const { return ballistic_offset() + (ballistic ? n_targets : 0); }
+  [[nodiscard]] constexpr int remote_clock_index(int j) const {
+    assert(j >= 0 && j < n_remote_clock);
+    return remote_clock_offset() + j;
+  }
+  [[nodiscard]] constexpr int size() const { return remote_clock_offset() + n_remote_clock; }
   // True for the components that are angles whose differences are wrapped to
   // (-pi, pi]: RAAN and u of the observer, dlambda of every target.
   [[nodiscard]] constexpr bool is_angle(int index) const {
