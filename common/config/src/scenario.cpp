@@ -12,6 +12,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <initializer_list>
 #include <iomanip>
 #include <limits>
 #include <map>
@@ -276,6 +277,22 @@ std::optional<std::string> read_string(Ctx& ctx, const Val& v, std::string_view 
     return std::nullopt;
   }
   return v.node.Scalar();
+}
+
+// A value that is one of a few names: out takes the matching one; any other
+// value is reported as "expected <expected>, got ...".
+template <typename E>
+void choice(Ctx& ctx, const Val& v, std::string_view expected,
+            std::initializer_list<std::pair<std::string_view, E>> names, E& out) {
+  const auto s = read_string(ctx, v, expected);
+  if (!s) return;
+  for (const auto& [name, value] : names) {
+    if (*s == name) {
+      out = value;
+      return;
+    }
+  }
+  ctx.error(v, "expected " + std::string(expected) + ", got " + describe(v.node));
 }
 
 // Spacecraft ids: at most 20 characters (see the id check below).
@@ -1388,19 +1405,15 @@ class Parser {
         int_field(ctx_, sm, "max_large_residuals", t.sod.max_large_residuals, 1, kBig);
         number_field(ctx_, sm, "underweighting", t.sod.underweighting, non_negative());
         bool_field(ctx_, sm, "adaptive_process_noise", t.sod.adaptive_process_noise);
+        using F = SodTuning::AdaptiveForm;
+        using A = SodTuning::AdaptiveAverage;
         if (const Val* fv = sm.find("adaptive_form")) {
-          const auto e = read_string(ctx_, *fv, "diagonal or block");
-          using F = SodTuning::AdaptiveForm;
-          if (e && *e == "diagonal") t.sod.adaptive_form = F::kDiagonal;
-          else if (e && *e == "block") t.sod.adaptive_form = F::kBlock;
-          else if (e) ctx_.error(*fv, "expected diagonal or block, got " + describe(fv->node));
+          choice<F>(ctx_, *fv, "diagonal or block", {{"diagonal", F::kDiagonal}, {"block", F::kBlock}},
+                    t.sod.adaptive_form);
         }
         if (const Val* av = sm.find("adaptive_average")) {
-          const auto e = read_string(ctx_, *av, "clamped or unclamped");
-          using A = SodTuning::AdaptiveAverage;
-          if (e && *e == "clamped") t.sod.adaptive_average = A::kClamped;
-          else if (e && *e == "unclamped") t.sod.adaptive_average = A::kUnclamped;
-          else if (e) ctx_.error(*av, "expected clamped or unclamped, got " + describe(av->node));
+          choice<A>(ctx_, *av, "clamped or unclamped", {{"clamped", A::kClamped}, {"unclamped", A::kUnclamped}},
+                    t.sod.adaptive_average);
         }
         number_field(ctx_, sm, "process_noise_scale", t.sod.process_noise_scale, positive());
         int_field(ctx_, sm, "nis_window", t.sod.nis_window, 0, 1000);
@@ -1408,22 +1421,18 @@ class Parser {
         number_field(ctx_, sm, "observer_acceleration_sigma_mps2", t.sod.observer_acceleration_sigma_mps2,
                      Range{0.0, 1e-3, true, true}, "m/s^2");
         if (const Val* lv = sm.find("target_lines")) {
-          const auto e = read_string(ctx_, *lv, "consider_observer or update_observer");
           using L = SodTuning::TargetLines;
-          if (e && *e == "consider_observer") t.sod.target_lines = L::kConsiderObserver;
-          else if (e && *e == "update_observer") t.sod.target_lines = L::kUpdateObserver;
-          else if (e) ctx_.error(*lv, "expected consider_observer or update_observer, got " + describe(lv->node));
+          choice<L>(ctx_, *lv, "consider_observer or update_observer",
+                    {{"consider_observer", L::kConsiderObserver}, {"update_observer", L::kUpdateObserver}},
+                    t.sod.target_lines);
         }
         if (const Val* tv = sm.find("time_tag")) {
           Map tm(ctx_, *tv, {"estimate", "sigma_s", "drift_sigma_ppm", "senders", "senders_sigma_s"});
           if (tm.ok()) {
             if (const Val* ev = tm.find("estimate")) {
-              const auto e = read_string(ctx_, *ev, "none, offset or drift");
               using E = SodTuning::TimeTagEstimation;
-              if (e && *e == "none") t.sod.time_tag = E::kNone;
-              else if (e && *e == "offset") t.sod.time_tag = E::kOffset;
-              else if (e && *e == "drift") t.sod.time_tag = E::kOffsetAndDrift;
-              else if (e) ctx_.error(*ev, "expected none, offset or drift, got " + describe(ev->node));
+              choice<E>(ctx_, *ev, "none, offset or drift",
+                        {{"none", E::kNone}, {"offset", E::kOffset}, {"drift", E::kOffsetAndDrift}}, t.sod.time_tag);
             }
             number_field(ctx_, tm, "sigma_s", t.sod.time_tag_sigma_s, Range{0.0, 60.0, true, true}, "s");
             number_field(ctx_, tm, "drift_sigma_ppm", t.sod.time_tag_drift_sigma_ppm, Range{0.0, 1e4, true, true},

@@ -1027,39 +1027,30 @@ std::optional<std::array<double, 2>> Navigator::range_window(int k) const {
 
 bool Navigator::restart_estimate(int k, astro::TimeTT t, const astro::QnsElements& observer_osc, astro::Vec6& roe,
                                  astro::Mat6& P) const {
-  const auto& b = last_bod_[static_cast<std::size_t>(k)];
-  if (b) {
+  // A mean estimate made osculating at t; false where the mean model refuses
+  // the observer's elements.
+  const auto from_mean = [&](const BodEstimate& m) {
     try {
-      const OsculatingRoe o = osculating_at(*b, t, observer_osc);
+      const OsculatingRoe o = osculating_at(m, t, observer_osc);
       roe = o.roe;
       P = o.P;
       return true;
     } catch (const std::exception&) {
-      // the mean model refuses the observer's elements: fall through
+      return false;
     }
-  }
-  if (static_cast<std::size_t>(k) < up_.apriori.size()) {
-    // Later than the first initialisation: the a-priori as mean ROE then,
-    // carried with the J2 STM and made osculating again (the osculating ROE
-    // of a 155 km along-track pair swing by ~400 m over an orbit with J2's
-    // short-period terms, far beyond the a-priori's 1-sigma in dex, dey).
-    const auto& ref = apriori_mean_.size() > static_cast<std::size_t>(k) ? apriori_mean_[static_cast<std::size_t>(k)]
-                                                                         : std::optional<BodEstimate>();
-    if (ref && t != ref->t) {
-      try {
-        const OsculatingRoe o = osculating_at(*ref, t, observer_osc);
-        roe = o.roe;
-        P = o.P;
-        return true;
-      } catch (const std::exception&) {
-        // the mean model refuses the observer's elements: fall through
-      }
-    }
-    roe = apriori_at(k, t, observer_osc).as_vector();
-    P = apriori_covariance_at(k, t, observer_osc);
+  };
+  const auto ku = static_cast<std::size_t>(k);
+  if (last_bod_[ku] && from_mean(*last_bod_[ku])) return true;
+  if (ku >= up_.apriori.size()) return false;
+  // Later than the first initialisation: the a-priori as mean ROE then,
+  // carried with the J2 STM and made osculating again (the osculating ROE of
+  // a 155 km along-track pair swing by ~400 m over an orbit with J2's
+  // short-period terms, far beyond the a-priori's 1-sigma in dex, dey).
+  if (ku < apriori_mean_.size() && apriori_mean_[ku] && t != apriori_mean_[ku]->t && from_mean(*apriori_mean_[ku]))
     return true;
-  }
-  return false;
+  roe = apriori_at(k, t, observer_osc).as_vector();
+  P = apriori_covariance_at(k, t, observer_osc);
+  return true;
 }
 
 namespace {

@@ -716,7 +716,6 @@ UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas
     if (body == L::kObserver) return astro::cartesian_from_qns(obs, gm);
     return astro::cartesian_from_qns(astro::qns_from_roe(obs, Roe::from_vector(xs.segment<6>(lay.target_offset(body)))), gm);
   };
-  const auto position = [&state_of](const VectorXd& xs, int body) -> Vec3 { return state_of(xs, body).r_m; };
   MeasurementModel model;
   const int hi = std::max(meas.from, meas.to);
   model.cutoff = hi >= 0 ? layout_.target_offset(hi) + StateLayout::kBlock : StateLayout::kBlock;
@@ -728,28 +727,21 @@ UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas
   const int from = meas.from, to = meas.to;
   const Vec3 r_ext = meas.from_r_eci_m, v_ext = meas.from_v_eci_mps;
   const int i_clock = meas.sender_clock >= 0 ? layout_.remote_clock_index(meas.sender_clock) : -1;
-  if (i_clock >= 0) {
-    model.cutoff = i_clock + 1;
-    model.h = [=](const VectorXd& xs) -> VectorXd {
-      // The sender's image saw both bodies at t - dt (first order in its clock's offset dt).
-      const double dt = xs[i_clock];
-      const astro::StateVector b = state_of(xs, to);
-      Vec3 a = r_ext - dt * v_ext;
-      if (from != L::kExternal) {
-        const astro::StateVector sa = state_of(xs, from);
-        a = sa.r_m - dt * sa.v_mps;
-      }
-      return astro::bearing_from_eci(a, b.r_m - dt * b.v_mps, R_v).as_vector();
-    };
-  } else {
-    model.h = [=](const VectorXd& xs) -> VectorXd {
-      const Vec3 a = from == L::kExternal ? r_ext : position(xs, from);
-      return astro::bearing_from_eci(a, position(xs, to), R_v).as_vector();
-    };
-  }
+  if (i_clock >= 0) model.cutoff = i_clock + 1;
+  model.h = [=](const VectorXd& xs) -> VectorXd {
+    // The sender's image saw both bodies at t - dt (first order in its clock's offset dt).
+    const double dt = i_clock >= 0 ? xs[i_clock] : 0.0;
+    const astro::StateVector b = state_of(xs, to);
+    Vec3 a = r_ext - dt * v_ext;
+    if (from != L::kExternal) {
+      const astro::StateVector sa = state_of(xs, from);
+      a = sa.r_m - dt * sa.v_mps;
+    }
+    return astro::bearing_from_eci(a, b.r_m - dt * b.v_mps, R_v).as_vector();
+  };
   MatrixXd Rm = MatrixXd::Identity(2, 2) * meas.sigma_rad * meas.sigma_rad;
   if (from == L::kExternal) {
-    const astro::Mat23 J = astro::bearing_jacobian_target_eci(r_ext, position(x_, to), R_v);
+    const astro::Mat23 J = astro::bearing_jacobian_target_eci(r_ext, state_of(x_, to).r_m, R_v);
     Rm += J * meas.from_P_r_m2 * J.transpose();
   }
   const astro::Bearing zb = astro::bearing_from_los(R_v * z);
