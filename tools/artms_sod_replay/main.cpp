@@ -335,6 +335,9 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"diagonal", "block"}));
   app.add_option("--adaptive-average", adaptive_average, "override tuning.sod.adaptive_average")
       ->check(CLI::IsMember({"clamped", "unclamped"}));
+  std::optional<double> drag_density_error;
+  app.add_option("--drag-density-error", drag_density_error, "override tuning.sod.drag_density_error")
+      ->check(CLI::Range(0.0, 10.0));
   std::string target_lines;
   app.add_option("--target-lines", target_lines,
                  "override tuning.sod.target_lines: another observer's bearing of a target updates the relative orbits "
@@ -367,6 +370,7 @@ int run(int argc, char** argv) {
   tuning.underweighting = underweighting.value_or(tuning.underweighting);
   tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
   tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
+  tuning.drag_density_error = drag_density_error.value_or(tuning.drag_density_error);
   if (!adaptive_form.empty())
     tuning.adaptive_form = adaptive_form == "block" ? config::SodTuning::AdaptiveForm::kBlock
                                                     : config::SodTuning::AdaptiveForm::kDiagonal;

@@ -1384,7 +1384,7 @@ class Parser {
       Map sm(ctx_, *sv,
              {"period", "bearing_sigma_arcsec", "eps_assign", "eps_ambig",
               "max_steps_without_update", "max_large_residuals", "underweighting",
-              "adaptive_process_noise", "adaptive_form", "adaptive_average", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
+              "adaptive_process_noise", "adaptive_form", "adaptive_average", "drag_density_error", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
               "ballistic", "observer_acceleration_sigma_mps2", "target_lines"});
       if (sm.ok()) {
         duration_field(ctx_, sm, "period", t.sod.period_s, false);
@@ -1416,6 +1416,7 @@ class Parser {
                     t.sod.adaptive_average);
         }
         number_field(ctx_, sm, "process_noise_scale", t.sod.process_noise_scale, positive());
+        number_field(ctx_, sm, "drag_density_error", t.sod.drag_density_error, Range{0.0, 10.0, true, true});
         int_field(ctx_, sm, "nis_window", t.sod.nis_window, 0, 1000);
         number_field(ctx_, sm, "nis_false_alarm", t.sod.nis_false_alarm, Range{0.0, 0.5, true, false});
         number_field(ctx_, sm, "observer_acceleration_sigma_mps2", t.sod.observer_acceleration_sigma_mps2,

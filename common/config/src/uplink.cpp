@@ -179,6 +179,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"adaptive_average",
            u.tuning.sod.adaptive_average == SodTuning::AdaptiveAverage::kUnclamped ? "unclamped" : "clamped"},
           {"process_noise_scale", u.tuning.sod.process_noise_scale},
+          {"drag_density_error", u.tuning.sod.drag_density_error},
           {"nis_window", u.tuning.sod.nis_window},
           {"nis_false_alarm", u.tuning.sod.nis_false_alarm},
           {"time_tag", static_cast<int>(u.tuning.sod.time_tag)},
@@ -323,6 +324,9 @@ ObserverUplink read_uplink(const std::string& path) {
     else if (average == "unclamped") u.tuning.sod.adaptive_average = SodTuning::AdaptiveAverage::kUnclamped;
     else throw std::runtime_error(path + ": tuning.sod.adaptive_average must be clamped or unclamped, got " + average);
     u.tuning.sod.process_noise_scale = sod.at("process_noise_scale").get<double>();
+    u.tuning.sod.drag_density_error = sod.value("drag_density_error", 0.0);  // older uplinks: off
+    if (!(u.tuning.sod.drag_density_error >= 0.0 && u.tuning.sod.drag_density_error <= 10.0))
+      throw std::runtime_error(path + ": tuning.sod.drag_density_error must be in [0, 10]");
     u.tuning.sod.nis_window = sod.at("nis_window").get<int>();
     u.tuning.sod.nis_false_alarm = sod.at("nis_false_alarm").get<double>();
     const int tt = sod.at("time_tag").get<int>();

@@ -542,6 +542,16 @@ TEST(ScenarioLoad, AdaptiveFormAndAverageDefaultToThePapersAndAreNamedWhenWrong)
   expect_one("adaptive_bad_average.yaml", kValid + "tuning:\n  sod: {adaptive_average: 3}\n", 13,
              "tuning.sod.adaptive_average", "expected clamped or unclamped");
 }
+TEST(ScenarioLoad, DragDensityErrorIsOffByDefaultAndNamedWhenOutOfRange) {
+  EXPECT_EQ(load_scenario(write_file("drag_floor_default.yaml", kValid)).tuning.sod.drag_density_error, 0.0);
+  const Scenario s =
+      load_scenario(write_file("drag_floor.yaml", kValid + "tuning:\n  sod: {drag_density_error: 0.3}\n"));
+  EXPECT_DOUBLE_EQ(s.tuning.sod.drag_density_error, 0.3);
+  expect_one("drag_floor_negative.yaml", kValid + "tuning:\n  sod: {drag_density_error: -0.1}\n", 13,
+             "tuning.sod.drag_density_error", "out of range");
+  expect_one("drag_floor_text.yaml", kValid + "tuning:\n  sod: {drag_density_error: high}\n", 13,
+             "tuning.sod.drag_density_error", "expected a number");
+}
 TEST(ScenarioLoad, SenderClocksAreOffByDefaultAndNamedWhenWrong) {
   EXPECT_FALSE(load_scenario(write_file("senders_default.yaml", kValid)).tuning.sod.time_tag_senders);
   const Scenario s = load_scenario(

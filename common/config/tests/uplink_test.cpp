@@ -124,6 +124,21 @@ TEST(Uplink, AdaptiveFormAndAverageRoundTrip) {
   EXPECT_THROW((void)read_uplink(path), std::runtime_error);
 }
 
+TEST(Uplink, DragDensityErrorRoundTripsAndOlderUplinksLeaveItOff) {
+  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  ObserverUplink u = make_uplink(s, "SV4");
+  u.tuning.sod.drag_density_error = 0.3;
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_drag_floor.json";
+  write_uplink(u, path);
+  EXPECT_DOUBLE_EQ(read_uplink(path).tuning.sod.drag_density_error, 0.3);
+  ASSERT_TRUE(replace_in_file(path, "\"drag_density_error\"", "\"drag_density_error_gone\""));
+  EXPECT_EQ(read_uplink(path).tuning.sod.drag_density_error, 0.0);
+  u.tuning.sod.drag_density_error = 0.3;
+  write_uplink(u, path);
+  ASSERT_TRUE(replace_in_file(path, "\"drag_density_error\": 0.3", "\"drag_density_error\": -1.0"));
+  EXPECT_THROW((void)read_uplink(path), std::runtime_error);
+}
+
 TEST(Uplink, SenderClocksRoundTripAndOlderUplinksLeaveThemOff) {
   const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
   ObserverUplink u = make_uplink(s, "SV4");

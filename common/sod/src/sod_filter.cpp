@@ -83,6 +83,9 @@ void SodOptions::validate() const {
           "adaptive.floor_factor", "must be in [0, 1]");
   require(std::isfinite(adaptive.ceiling_factor) && adaptive.ceiling_factor >= 1.0,
           "adaptive.ceiling_factor", "must be finite and >= 1");
+  require(std::isfinite(adaptive.drag_density_error) && adaptive.drag_density_error >= 0.0 &&
+              adaptive.drag_density_error <= 10.0,
+          "adaptive.drag_density_error", "must be in [0, 10]");
   require(bearing_gate_mahalanobis > 0.0, "bearing_gate_mahalanobis", "must be > 0 (inf disables)");
   require(bearing_underweighting >= 0.0 && std::isfinite(bearing_underweighting), "bearing_underweighting", "must be >= 0");
   require(gnss_gate_mahalanobis > 0.0, "gnss_gate_mahalanobis", "must be > 0 (inf disables)");
@@ -109,6 +112,18 @@ Vec6 observer_process_noise_from_acceleration(double a_m, double i_rad, double s
   Vec6 q;
   q << std::pow(2.0 / n, 2) * q_v, 2.5 / na2 * q_v, 2.5 / na2 * q_v, 0.5 / na2 * q_v, 0.5 / (na2 * s2) * q_v,
       4.0 / na2 * q_v;
+  return q;
+}
+
+Vec6 target_along_track_process_noise(double a_m, double sigma_acc_mps2, double tau_s) {
+  if (!(a_m > 0.0) || !(sigma_acc_mps2 >= 0.0) || !(tau_s >= 0.0)) {
+    throw std::invalid_argument("target_along_track_process_noise: a > 0, sigma >= 0 and tau >= 0 expected");
+  }
+  const double n = std::sqrt(astro::kGmEarth_m3ps2 / (a_m * a_m * a_m));
+  const double q_v = 2.0 * sigma_acc_mps2 * sigma_acc_mps2 * tau_s;
+  const double na2 = std::pow(n * a_m, 2);
+  Vec6 q;
+  q << 4.0 / na2 * q_v, 0.0, 2.0 / na2 * q_v, 2.0 / na2 * q_v, 0.0, 0.0;
   return q;
 }
 
@@ -307,6 +322,18 @@ void SodFilter::adapt_process_noise() {
   const double alpha = o.forgetting, floor = o.floor_factor, ceiling = o.ceiling_factor;
   const bool unclamped = o.average == AdaptiveNoiseAverage::kUnclamped;
   const int n = layout_.size();
+  // The drag floor of each target (docs/sod.md, "The drag floor"), in the nominal's units.
+  VectorXd floor_add = VectorXd::Zero(n);
+  if (o.drag_density_error > 0.0 && layout_.ballistic && layout_.n_targets > 0) {
+    const QnsElements obs = QnsElements::from_vector(x_.head<6>());
+    const astro::StateVector xo = astro::cartesian_from_qns(obs, gm_m3ps2_);
+    const double f_t = std::abs((astro::R_rtn_from_eci(xo) * forces_.unit_ballistic_drag_eci(t_, xo))[1]);
+    const double period_s = astro::orbit_period_s(obs.a_m);
+    for (int k = 0; k < layout_.n_targets; ++k) {
+      const double sigma = o.drag_density_error * std::abs(x_[layout_.ballistic_index(k)]) * f_t;
+      floor_add.segment<6>(layout_.target_offset(k)) = target_along_track_process_noise(obs.a_m, sigma, period_s);
+    }
+  }
   std::vector<char> in_block(n, 0);
   if (o.form == AdaptiveNoiseForm::kBlock) {
     std::vector<int> blocks{0};
@@ -328,8 +355,21 @@ void SodFilter::adapt_process_noise() {
         const Vec6 lambda = eig.eigenvalues().cwiseMax(lo).cwiseMin(hi);
         return s.asDiagonal() * (V * lambda.asDiagonal() * V.transpose()) * s.asDiagonal();
       };
-      Q_rate_.block<6, 6>(off, off) = rebuild(floor, ceiling);
-      Q_average_.block<6, 6>(off, off) = unclamped ? rebuild(-ceiling, ceiling) : Mat6(Q_rate_.block<6, 6>(off, off));
+      Mat6 R = rebuild(floor, ceiling);
+      const Vec6 extra = floor_add.segment<6>(off);
+      if (extra.maxCoeff() > 0.0) {
+        // R >= floor N + D in the Loewner order: clamp in the floor's own units.
+        const Vec6 f = (floor * nominal + extra).cwiseSqrt(), f_inv = f.cwiseInverse();
+        Mat6 G = f_inv.asDiagonal() * R * f_inv.asDiagonal();
+        G = 0.5 * (G + G.transpose());
+        const Eigen::SelfAdjointEigenSolver<Mat6> eg(G);
+        if (eg.info() == Eigen::Success && eg.eigenvalues().allFinite()) {
+          const Vec6 mu = eg.eigenvalues().cwiseMax(1.0);
+          R = f.asDiagonal() * (eg.eigenvectors() * mu.asDiagonal() * eg.eigenvectors().transpose()) * f.asDiagonal();
+        }
+      }
+      Q_rate_.block<6, 6>(off, off) = R;
+      Q_average_.block<6, 6>(off, off) = unclamped ? rebuild(-ceiling, ceiling) : R;
       for (int i = off; i < off + 6; ++i) in_block[i] = 1;
     }
   }
@@ -338,7 +378,8 @@ void SodFilter::adapt_process_noise() {
     const double a_prev = unclamped ? Q_average_(i, i) : Q_rate_(i, i);
     const double q_hat = Q_rate_(i, i) + pending_dxdx_(i, i) / last_dt_s_;
     const double a = alpha * a_prev + (1.0 - alpha) * q_hat;
-    Q_rate_(i, i) = std::clamp(a, floor * q_nominal_[i], ceiling * q_nominal_[i]);
+    const double lo = floor * q_nominal_[i] + floor_add[i];
+    Q_rate_(i, i) = std::clamp(a, lo, std::max(lo, ceiling * q_nominal_[i]));
     Q_average_(i, i) = unclamped ? std::clamp(a, -ceiling * q_nominal_[i], ceiling * q_nominal_[i]) : Q_rate_(i, i);
   }
   q_ = Q_rate_.diagonal();

@@ -5,8 +5,11 @@
 // covariance inflation, and the chi-square quantile they use.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <tuple>
 
 #include "artms/sod/sod_filter.hpp"
@@ -243,6 +246,91 @@ TEST(SodAuxiliary, DifferentialBallisticCoefficientIsEstimated) {
   EXPECT_LT(std::abs(dB - dB_true), 3.0 * dB_sigma);
   EXPECT_LT(dB_sigma, 0.5 * dB_true);  // observable: the state learned something
   for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(err[i]), 3.0 * filter.a_roe_sigma_m(0)[i]) << "roe " << i;
+}
+
+// A target's along-track noise is the observer's along-track part in ROE
+// units: da = dv_T 2/(n a), d(ex, ey) at half of it (u-averaged), none on
+// dlambda, dix, diy (Gauss, M&G eq. 3.98).
+TEST(SodProcessNoise, TargetAlongTrackNoiseThroughGaussEquations) {
+  const double a = 6945e3, sigma = 2e-8, tau = 5760.0;
+  const Vec6 q = target_along_track_process_noise(a, sigma, tau);
+  const Vec6 q_obs = observer_process_noise_from_acceleration(a, 1.7, sigma, tau);
+  EXPECT_NEAR(q[0] * a * a, q_obs[0], 1e-12 * q_obs[0]);
+  EXPECT_DOUBLE_EQ(q[2], q[3]);
+  EXPECT_NEAR(q[2], 0.5 * q[0], 1e-12 * q[0]);
+  EXPECT_EQ(q[1], 0.0);
+  EXPECT_EQ(q[4], 0.0);
+  EXPECT_EQ(q[5], 0.0);
+  EXPECT_THROW(target_along_track_process_noise(a, -1.0, tau), std::invalid_argument);
+}
+
+// The drag floor (docs/sod.md): a target estimated with a differential
+// ballistic coefficient of twice the nominal Cd A/m gets, after an adaptive
+// step, a process noise at least floor x nominal + the unmodelled drag's
+// (density error x |dB| x the onboard drag per unit B) in the Loewner order;
+// a target with dB = 0 gets the same noise as without the floor, and so does
+// every target when the option is 0.
+TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
+  static const dynamics::ForceModel drag_forces =
+      dynamics::ForceModel::load(dynamics::ForceModelOptions::parse("grav2_0,drag"), ARTMS_DATA_DIR);
+  const dynamics::SpacecraftProperties nominal;
+  const double B = nominal.cd * nominal.drag_area_m2 / nominal.mass_kg, error = 0.5;
+  StateLayout layout{2, 0};
+  layout.ballistic = true;
+  astro::QnsElements obs = testing::observer_at_start();
+  obs.a_m = astro::kRadiusEarth_m + 450e3;
+  VectorXd x_seen;  // the state the adaptation sees: after the update at 60 s
+  const auto run = [&](double density_error) {
+    SodOptions o;
+    o.adaptive.form = AdaptiveNoiseForm::kBlock;
+    o.adaptive.average = AdaptiveNoiseAverage::kUnclamped;
+    o.adaptive.drag_density_error = density_error;
+    auto f = std::make_unique<SodFilter>(drag_forces, nominal, nominal, layout, o);
+    VectorXd x = VectorXd::Zero(layout.size());
+    x.head<6>() = obs.as_vector();
+    for (int k = 0; k < 2; ++k) {
+      x.segment<6>(layout.target_offset(k)) = Roe::from_scaled_m(testing::starling_a_roe_m()[k], obs.a_m).as_vector();
+    }
+    x[layout.ballistic_index(0)] = 2.0 * B;
+    MatrixXd P = MatrixXd::Identity(layout.size(), layout.size()) * 1e-12;
+    P(0, 0) = 100.0;
+    P(layout.ballistic_index(0), layout.ballistic_index(0)) = P(layout.ballistic_index(1), layout.ballistic_index(1)) =
+        B * B;
+    f->initialize(kT0, x, P);
+    EXPECT_TRUE(f->time_update(kT0.plus_seconds(60.0)).usable);
+    GnssMeasurement gm;
+    gm.t = kT0.plus_seconds(60.0);
+    gm.x_eci = astro::cartesian_from_qns(astro::QnsElements::from_vector(f->state().head<6>()));
+    gm.x_eci.r_m[0] += 5.0;
+    gm.sigma_r_m = 3.0;
+    gm.sigma_v_mps = 0.01;
+    EXPECT_TRUE(f->update_gnss(gm).usable);
+    x_seen = f->state();
+    // The adaptation is applied at the start of the next time update.
+    EXPECT_TRUE(f->time_update(kT0.plus_seconds(120.0)).usable);
+    return f;
+  };
+  const auto with = run(error), without = run(0.0);
+  const MatrixXd& Q = with->process_noise_rate_matrix();
+  const MatrixXd& Q0 = without->process_noise_rate_matrix();
+  const astro::QnsElements o1 = astro::QnsElements::from_vector(x_seen.head<6>());
+  const astro::StateVector xo = astro::cartesian_from_qns(o1);
+  const double f_t = std::abs(
+      (astro::R_rtn_from_eci(xo) * drag_forces.unit_ballistic_drag_eci(kT0.plus_seconds(60.0), xo))[1]);
+  // Cannonball drag per unit B: 0.5 rho v^2 with rho of 1e-14 .. 1e-11 kg/m^3 at 450 km.
+  EXPECT_GT(f_t, 0.5 * 1e-14 * 7.6e3 * 7.6e3);
+  EXPECT_LT(f_t, 0.5 * 1e-11 * 7.7e3 * 7.7e3);
+  const Vec6 D = target_along_track_process_noise(o1.a_m, error * 2.0 * B * f_t, astro::orbit_period_s(o1.a_m));
+  const int off0 = layout.target_offset(0), off1 = layout.target_offset(1);
+  const Vec6 N = SodOptions{}.q_target_a_roe_m2ps / (obs.a_m * obs.a_m);  // the nominal at initialisation
+  const Vec6 F_inv_sqrt = (SodOptions{}.adaptive.floor_factor * N + D).cwiseSqrt().cwiseInverse();
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(F_inv_sqrt.asDiagonal() * Mat6(Q.block<6, 6>(off0, off0)) *
+                                                F_inv_sqrt.asDiagonal());
+  EXPECT_GE(eig.eigenvalues().minCoeff(), 1.0 - 1e-6);
+  EXPECT_GT(Q(off0, off0), 10.0 * Q0(off0, off0));  // 2 B at 450 km: the floor dominates
+  const double diff1 = (Q.block<6, 6>(off1, off1) - Q0.block<6, 6>(off1, off1)).cwiseAbs().maxCoeff();
+  const double scale1 = Q0.block<6, 6>(off1, off1).cwiseAbs().maxCoeff();
+  EXPECT_LT(diff1, 1e-9 * scale1);
 }
 
 // The observer's own planned 10 cm/s along-track burn (executed 3 % long):

@@ -198,6 +198,10 @@ struct SodTuning {
   AdaptiveForm adaptive_form = AdaptiveForm::kDiagonal;
   AdaptiveAverage adaptive_average = AdaptiveAverage::kClamped;
   double process_noise_scale = 1.0;   // times the nominal target process noise
+  // The onboard density's expected relative error along the orbit: with the
+  // ballistic states on, the differential drag it leaves unmodelled is the
+  // floor of each target's adaptive process noise (0: off; docs/sod.md).
+  double drag_density_error = 0.0;
   // Health check 5 (docs/sod.md): mean NIS of a target's last nis_window
   // bearings against the chi2(2 W)/W quantile at 1 - nis_false_alarm.
   int nis_window = 20;                // 0: off

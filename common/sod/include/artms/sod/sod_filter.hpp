@@ -61,6 +61,13 @@ struct AdaptiveNoiseOptions {
   double forgetting = 0.95;  // alpha, in (0, 1)
   double floor_factor = 0.1;
   double ceiling_factor = 100.0;
+  // The onboard density's expected relative error along the orbit (0: off).
+  // A target whose differential ballistic coefficient is estimated at dB^
+  // has |dB^| x this x the onboard drag per unit B of unmodelled along-track
+  // acceleration; its ROE rate (Gauss, correlated over one orbit) is added to
+  // the floor of the target's adaptive process noise (docs/sod.md,
+  // "The drag floor").
+  double drag_density_error = 0.0;
 };
 
 // Thresholds of the paper's four health checks.
@@ -164,6 +171,14 @@ struct SodOptions {
 // dRAAN = sin u dv_N/(n a sin i) -> 0.5/(n a sin i)^2; du = -2 dv_R/(n a) -> 4/(n a)^2.
 // Throws std::invalid_argument for a non-positive a or a negative sigma or tau.
 Vec6 observer_process_noise_from_acceleration(double a_m, double i_rad, double sigma_acc_mps2, double tau_s);
+
+// A target's ROE process noise (variance rates of the dimensionless ROE, order
+// da, dlambda, dex, dey, dix, diy) of an unmodelled differential along-track
+// acceleration with 1-sigma sigma_acc and correlation time tau: q_v = 2
+// sigma^2 tau through the same Gauss equations, da = (2/n) dv_T / a;
+// d(ex, ey) = 2 (cos u, sin u) dv_T / (n a) -> 2/(n a)^2 each; dlambda, dix,
+// diy take none directly. Throws std::invalid_argument as above.
+Vec6 target_along_track_process_noise(double a_m, double sigma_acc_mps2, double tau_s);
 
 // Quantile of the chi-square distribution with `dof` degrees of freedom at
 // probability p (Wilson & Hilferty 1931 cube-root normal approximation; within
