@@ -10,7 +10,14 @@
 #     frames in which it is visible (truth, frames.csv), at most 5 % of
 #     bearings too late;
 #  2. starling_pse_timetag.yaml (tags +0.5 s, no correction, SOD estimates
-#     the offset): the same, with the offset only SOD's estimate.
+#     the offset): the same, with the offset only SOD's estimate;
+#  3. artms-sod-replay on both run folders (bearings joined to the truth by
+#     frame, fused at the tag plus the uplinked correction, the scenario's
+#     auxiliary states): it fuses at least 90 % of the bearings the observer
+#     accepted, its final a*dlambda 1-sigma within 20 % of the observer's
+#     (the replay has no BOD, health checks or filter lag), and its telemetry
+#     view 600 s ahead (--report-ahead-s) runs; a run whose bearings match no
+#     target (frames.csv emptied) is an error, not a report.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -36,4 +43,29 @@ for s in ("starling_pse_flight", "starling_pse_timetag"):
     assert accepted >= 0.7 * visible, (s, accepted, visible)
     assert late <= 0.05 * accepted, (s, late, accepted)
 PY
+for s in starling_pse_flight starling_pse_timetag; do
+  "$BIN/artms-sod-replay" "$WORK/$s" --after-orbits 1 > "$WORK/$s.replay" 2>&1 || { cat "$WORK/$s.replay"; exit 1; }
+  "$BIN/artms-sod-replay" "$WORK/$s" --after-orbits 1 --report-ahead-s 600 > "$WORK/$s.replay600" 2>&1 \
+    || { cat "$WORK/$s.replay600"; exit 1; }
+  cat "$WORK/$s.replay" "$WORK/$s.replay600"
+done
+/usr/bin/python3 - "$WORK" <<'PY'
+import json, re, sys
+work = sys.argv[1]
+for s in ("starling_pse_flight", "starling_pse_timetag"):
+    t = json.load(open(f"{work}/{s}/summary.json"))["observers"]["SV4"]["targets"]["SV2"]
+    m = re.search(r"SV2: (\d+) of \d+ bearings fused.*final a\*dlambda 1-sigma (\d+) m", open(f"{work}/{s}.replay").read())
+    assert m, s
+    fused, sigma = int(m.group(1)), float(m.group(2))
+    live = t["final_sigma_a_roe_m"][1]
+    print(f"{s} replay: SV2 {fused} bearings fused (observer {t['local_measurements']}), "
+          f"final a*dlambda 1-sigma {sigma:.0f} m (observer {live:.0f} m)")
+    assert fused >= 0.9 * t["local_measurements"], (s, fused, t["local_measurements"])
+    assert abs(sigma - live) <= 0.2 * live, (s, sigma, live)
+PY
+mkdir -p "$WORK/nomatch"
+cp -r "$WORK/starling_pse_flight/." "$WORK/nomatch/"
+head -1 "$WORK/starling_pse_flight/frames.csv" > "$WORK/nomatch/frames.csv"
+if "$BIN/artms-sod-replay" "$WORK/nomatch" 2> "$WORK/nomatch.err"; then echo "FAIL: a replay with no bearing matched"; exit 1; fi
+grep -q "nothing to replay" "$WORK/nomatch.err" || { echo "FAIL: unclear error"; cat "$WORK/nomatch.err"; exit 1; }
 echo "swarm_time_tags: ok"

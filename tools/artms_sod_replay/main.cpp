@@ -9,8 +9,13 @@
 // pixel), without the attitude's.
 //
 // An evaluation tool: it reads truth.oem and frames.csv (bearings are given
-// to the target whose true pixel is within 3 px, where the observer
-// associates them itself), never onboard. Modes 1 and 3 replay the
+// to the target whose true pixel in the same frame is within 3 px, where the
+// observer associates them itself), never onboard. Bearings keep IMP's time
+// tag plus the uplinked correction, as the navigator fuses them; synthetic
+// ones are drawn about the line of sight at the frame's true time. The filter
+// has the scenario's auxiliary states (time tags, ballistic coefficients)
+// with their uplinked priors, but none of the navigator's health checks, BOD
+// or re-initialisations. Modes 1 and 3 replay the
 // observer's own GNSS fixes and bearings; mode 4 (no GNSS) starts from the
 // uplinked coarse orbit and fuses every observer's recorded bearings (its own
 // as bearings, the others' as remote lines of sight, as the crosslink would
@@ -28,6 +33,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -307,7 +313,7 @@ int run(int argc, char** argv) {
                "artms-sod-replay"};
   std::string run_dir, observer = "SV4", bearings_mode = "measured", csv_out;
   std::uint64_t seed = 1;
-  double sigma_scale = 1.0, after_orbits = 4.0, min_separation_px = 0.0;
+  double sigma_scale = 1.0, after_orbits = 4.0, min_separation_px = 0.0, report_ahead_s = 0.0;
   app.add_option("run", run_dir, "run folder (artms-swarm run --out)")->required();
   app.add_option("--observer", observer, "observer id (mode 1, 3 or 4)")->capture_default_str();
   app.add_option("--bearings", bearings_mode,
@@ -355,6 +361,11 @@ int run(int argc, char** argv) {
   app.add_option("--start-roe", start_roe,
                  "mode 4: the targets' initial ROE: apriori (as the observer) or truth (a-priori covariance kept)")
       ->check(CLI::IsMember({"apriori", "truth"}))
+      ->capture_default_str();
+  app.add_option("--report-ahead-s", report_ahead_s,
+                 "modes 1 and 3: evaluate the filter's linearised prediction this far ahead of each fix, as the "
+                 "navigator's telemetry reports it while its filter lags the clock (at most max_lag_s, 600 s)")
+      ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
   app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES");
   CLI11_PARSE(app, argc, argv);
@@ -407,30 +418,49 @@ int run(int argc, char** argv) {
   const int n = static_cast<int>(ids.size());
   const auto truth = read_truth(run_dir + "/truth.oem");
 
-  // True pixels per frame time.
-  std::map<std::int64_t, std::map<std::string, Eigen::Vector2d>> true_px;
+  // True pixels and true times per frame. IMP tags a bearing with the
+  // frame's time tag (off by any time-tag fault); the frame index joins it
+  // to the truth, and the filter sees the tag plus the uplinked correction,
+  // as the navigator does.
+  struct FrameTruth {
+    std::int64_t t_true_ns = 0;
+    std::map<std::string, Eigen::Vector2d> px;
+  };
+  std::map<std::int64_t, FrameTruth> frame_truth;
   {
     const auto frames = io::CsvTable::read(run_dir + "/frames.csv");
     for (std::size_t r = 0; r < frames.size(); ++r) {
-      if (frames.text(r, "observer") != observer || frames.text(r, "x_px").empty()) continue;
-      true_px[frames.integer(r, "t_tt_ns")][frames.text(r, "target")] =
-          Eigen::Vector2d(frames.number(r, "x_px"), frames.number(r, "y_px"));
+      if (frames.text(r, "observer") != observer) continue;
+      FrameTruth& ft = frame_truth[frames.integer(r, "frame")];
+      ft.t_true_ns = frames.integer(r, "t_tt_ns");
+      if (!frames.text(r, "x_px").empty())
+        ft.px[frames.text(r, "target")] = Eigen::Vector2d(frames.number(r, "x_px"), frames.number(r, "y_px"));
     }
   }
+  const double correction_s = up.observer.camera.time_tag_correction_s;
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal;
-  std::map<std::int64_t, std::vector<Bearing>> bearings;
+  struct TimedBearing {
+    astro::TimeTT t;  // the tag plus the uplinked correction
+    Bearing b;
+  };
+  std::vector<TimedBearing> bearings;
   int unassigned = 0, blended = 0;
   {
     const auto m = io::CsvTable::read(run_dir + "/imp/" + observer + "/measurements.csv");
     for (std::size_t r = 0; r < m.size(); ++r) {
-      const std::int64_t t = m.integer(r, "t_tt_ns");
+      const auto fit = frame_truth.find(m.integer(r, "frame"));
+      if (fit == frame_truth.end()) {
+        ++unassigned;
+        continue;
+      }
+      const FrameTruth& ft = fit->second;
       const Eigen::Vector2d p(m.number(r, "x_px"), m.number(r, "y_px"));
       int best = -1;
       double best_d = 3.0;
       for (int k = 0; k < n; ++k) {
-        const auto it = true_px[t].find(ids[static_cast<std::size_t>(k)]);
-        if (it != true_px[t].end() && (it->second - p).norm() < best_d) {
+        const auto it = ft.px.find(ids[static_cast<std::size_t>(k)]);
+        if (it != ft.px.end() && (it->second - p).norm() < best_d) {
           best_d = (it->second - p).norm();
           best = k;
         }
@@ -439,11 +469,12 @@ int run(int argc, char** argv) {
         ++unassigned;  // a star, a hot pixel, or a target more than 3 px off
         continue;
       }
+      const std::string& best_id = ids[static_cast<std::size_t>(best)];
       if (min_separation_px > 0.0) {
-        const Eigen::Vector2d q = true_px[t][ids[static_cast<std::size_t>(best)]];
+        const Eigen::Vector2d q = ft.px.at(best_id);
         bool near = false;
-        for (const auto& [id, other] : true_px[t])
-          if (id != ids[static_cast<std::size_t>(best)] && (other - q).norm() < min_separation_px) near = true;
+        for (const auto& [id, other] : ft.px)
+          if (id != best_id && (other - q).norm() < min_separation_px) near = true;
         if (near) {
           ++blended;
           continue;
@@ -452,8 +483,12 @@ int run(int argc, char** argv) {
       Eigen::Vector3d u(m.number(r, "ux_eci"), m.number(r, "uy_eci"), m.number(r, "uz_eci"));
       const double sigma = m.number(r, "sigma_rad");
       if (bearings_mode != "measured") {
-        const auto& o = truth.at(t).at(observer);
-        const auto& g = truth.at(t).at(ids[static_cast<std::size_t>(best)]);
+        const auto tt = truth.find(ft.t_true_ns);
+        if (tt == truth.end() || !tt->second.count(observer) || !tt->second.count(best_id))
+          throw std::runtime_error(run_dir + "/truth.oem: no state of " + observer + " and " + best_id +
+                                   " at frame " + std::to_string(fit->first) + "'s time");
+        const auto& o = tt->second.at(observer);
+        const auto& g = tt->second.at(best_id);
         const Eigen::Vector3d u_true = (g.r_m - o.r_m).normalized();
         // (e1, e2): perpendicular to the line of sight, e1 towards the zenith.
         const Eigen::Vector3d e1 = (o.r_m.normalized() - u_true * u_true.dot(o.r_m.normalized())).normalized();
@@ -461,19 +496,22 @@ int run(int argc, char** argv) {
         if (bearings_mode == "synthetic") {
           u = (u_true + noise_scale * sigma * (normal(rng) * e1 + normal(rng) * e2)).normalized();
         } else {  // pixel: the centroid's error, small-angle, pixel axes onto (e1, e2)
-          const Eigen::Vector2d dp = p - true_px[t][ids[static_cast<std::size_t>(best)]];
+          const Eigen::Vector2d dp = p - ft.px.at(best_id);
           u = (u_true + dp.x() / up.camera_calibration.fx_px * e1 + dp.y() / up.camera_calibration.fy_px * e2)
                   .normalized();
         }
       }
-      bearings[t].push_back({best, u, sigma * sigma_scale});
+      bearings.push_back({astro::TimeTT{m.integer(r, "t_tt_ns")}.plus_seconds(correction_s), {best, u, sigma * sigma_scale}});
     }
   }
+  std::stable_sort(bearings.begin(), bearings.end(),
+                   [](const TimedBearing& x, const TimedBearing& y) { return x.t.ns_since_j2000 < y.t.ns_since_j2000; });
 
-  // The filter, as the navigator starts it (navigator.cpp, initialise).
-  const sod::SodOptions opt = fsw::sod_options(tuning);
-  sod::SodFilter f(forces, dynamics::SpacecraftProperties{}, dynamics::SpacecraftProperties{}, sod::StateLayout{n, 0},
-                   opt);
+  // The filter, as the navigator starts it (navigator.cpp, initialise): the
+  // scenario's layout (auxiliary states) with their uplinked priors.
+  const sod::StateLayout layout = fsw::sod_layout(tuning, n);
+  const Eigen::VectorXd aux_var = fsw::auxiliary_prior_variance(tuning, layout);
+  std::unique_ptr<sod::SodFilter> filter;
   const double sigma_r = up.observer.gnss.sigma_position_m, sigma_v = up.observer.gnss.sigma_velocity_mps;
   std::FILE* csv = nullptr;
   if (!csv_out.empty()) {
@@ -482,12 +520,12 @@ int run(int argc, char** argv) {
     std::fprintf(csv, "t_tt_ns,target,err_a_da_m,err_a_dlambda_m,err_a_dex_m,err_a_dey_m,err_a_dix_m,err_a_diy_m,"
                       "sigma_a_da_m,sigma_a_dlambda_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_dix_m,sigma_a_diy_m,nees\n");
   }
-  bool started = false;
   std::int64_t t0 = 0;
   double period_s = 0.0, a_m = 0.0;
   std::vector<double> nees_sum(static_cast<std::size_t>(n), 0.0);
   std::vector<int> nees_steps(static_cast<std::size_t>(n), 0), fused(static_cast<std::size_t>(n), 0),
       offered(static_cast<std::size_t>(n), 0);
+  std::size_t next_bearing = 0;
   const auto gnss = io::CsvTable::read(run_dir + "/gnss.csv");
   for (std::size_t r = 0; r < gnss.size(); ++r) {
     if (gnss.text(r, "spacecraft") != observer || gnss.text(r, "valid") != "1") continue;
@@ -497,12 +535,15 @@ int run(int argc, char** argv) {
     g.x_eci.v_mps << gnss.number(r, "vx_mps"), gnss.number(r, "vy_mps"), gnss.number(r, "vz_mps");
     g.sigma_r_m = sigma_r;
     g.sigma_v_mps = sigma_v;
-    if (!started) {
+    if (!filter) {
       const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
+      filter = std::make_unique<sod::SodFilter>(forces, dynamics::SpacecraftProperties{},
+                                                dynamics::SpacecraftProperties{}, layout,
+                                                fsw::sod_options(tuning, obs));
       Vec6 var_rv;
       var_rv << Eigen::Vector3d::Constant(sigma_r * sigma_r), Eigen::Vector3d::Constant(sigma_v * sigma_v);
       const Mat6 J = astro::jacobian_qns_from_cartesian(g.x_eci);
-      MatrixXd P = MatrixXd::Zero(6 * (n + 1), 6 * (n + 1));
+      MatrixXd P = MatrixXd::Zero(layout.size(), layout.size());
       P.topLeftCorner<6, 6>() = J * var_rv.asDiagonal() * J.transpose() + Mat6::Identity() * 1e-20;
       const double dt = astro::seconds_between(up.epoch, g.t);
       std::vector<astro::Roe> roes;
@@ -510,27 +551,43 @@ int run(int argc, char** argv) {
         // The a-priori's drift to the fix, as the navigator does.
         const auto& ap = up.apriori[static_cast<std::size_t>(k)];
         roes.push_back(astro::Roe::from_vector(sod::apriori_roe_at(ap.roe, obs, dt)));
-        P.block<6, 6>(6 * (k + 1), 6 * (k + 1)) = sod::apriori_covariance_at(ap.P_roe, obs, dt);
+        P.block<6, 6>(layout.target_offset(k), layout.target_offset(k)) = sod::apriori_covariance_at(ap.P_roe, obs, dt);
       }
-      f.initialize(g.t, f.make_state(obs, roes), P);
-      started = true;
+      const int n_aux = layout.size() - layout.aux_offset();
+      if (n_aux > 0) P.bottomRightCorner(n_aux, n_aux) = aux_var.asDiagonal();
+      filter->initialize(g.t, filter->make_state(obs, roes), P);
       t0 = g.t.ns_since_j2000;
       period_s = astro::orbit_period_s(obs.a_m);
       a_m = obs.a_m;
-    } else {
-      f.time_update(g.t);
-      f.update_gnss(g);
+      while (next_bearing < bearings.size() && bearings[next_bearing].t.ns_since_j2000 < t0) ++next_bearing;
+      continue;
     }
-    for (const auto& b : bearings[g.t.ns_since_j2000]) {
-      ++offered[static_cast<std::size_t>(b.target)];
-      const Eigen::Matrix3d R = frame_about(b.u_eci);
-      if (f.update_bearing(sod::bearing_measurement_from_unit_eci(g.t, b.target, b.u_eci, b.sigma_rad, R)).usable)
-        ++fused[static_cast<std::size_t>(b.target)];
-    }
-    const auto it = truth.find(g.t.ns_since_j2000);
+    // Bearings up to this fix in time order (at the fix's own time: after it).
+    const auto fuse_until = [&](std::int64_t t_ns, bool inclusive) {
+      for (; next_bearing < bearings.size(); ++next_bearing) {
+        const TimedBearing& tb = bearings[next_bearing];
+        if (tb.t.ns_since_j2000 > t_ns || (!inclusive && tb.t.ns_since_j2000 == t_ns)) break;
+        ++offered[static_cast<std::size_t>(tb.b.target)];
+        const Eigen::Matrix3d R = frame_about(tb.b.u_eci);
+        if (filter->update_bearing(sod::bearing_measurement_from_unit_eci(tb.t, tb.b.target, tb.b.u_eci, tb.b.sigma_rad, R))
+                .usable)
+          ++fused[static_cast<std::size_t>(tb.b.target)];
+      }
+    };
+    fuse_until(g.t.ns_since_j2000, false);
+    filter->time_update(g.t);
+    filter->update_gnss(g);
+    fuse_until(g.t.ns_since_j2000, true);
+    sod::SodFilter f0 = *filter;
+    // --report-ahead-s: what the navigator's telemetry reports while its
+    // filter is that far behind the clock (its linearised prediction).
+    const astro::TimeTT t_rep = g.t.plus_seconds(report_ahead_s);
+    if (report_ahead_s > 0.0) (void)f0.predict_linearised(t_rep);
+    sod::SodFilter& f = f0;
+    const auto it = truth.find(t_rep.ns_since_j2000);
     if (it == truth.end() || !it->second.count(observer)) continue;
     const astro::QnsElements obs_true = astro::qns_from_cartesian(it->second.at(observer));
-    const double orbits = static_cast<double>(g.t.ns_since_j2000 - t0) * 1e-9 / period_s;
+    const double orbits = static_cast<double>(t_rep.ns_since_j2000 - t0) * 1e-9 / period_s;
     for (int k = 0; k < n; ++k) {
       const auto& id = ids[static_cast<std::size_t>(k)];
       if (!it->second.count(id)) continue;
@@ -553,7 +610,15 @@ int run(int argc, char** argv) {
     }
   }
   if (csv) std::fclose(csv);
-  if (!started) throw std::runtime_error(run_dir + "/gnss.csv: no valid fix of " + observer);
+  if (!filter) throw std::runtime_error(run_dir + "/gnss.csv: no valid fix of " + observer);
+  if (!bearings.empty() && std::all_of(offered.begin(), offered.end(), [](int c) { return c == 0; }))
+    throw std::runtime_error(run_dir + ": none of the " + std::to_string(bearings.size()) + " bearings of " + observer +
+                             " given to a target fell within the GNSS fixes; nothing to replay");
+  if (bearings.empty())
+    throw std::runtime_error(run_dir + "/imp/" + observer + "/measurements.csv: none of its " +
+                             std::to_string(unassigned) + " bearings lies within 3 px of a target's true pixel in "
+                             "its frame (frames.csv); nothing to replay");
+  const sod::SodFilter& f = *filter;
   std::printf("%s, observer %s, bearings %s (seed %llu, sigma x %.2f); %d recorded bearings not within 3 px of a "
               "target, %d left out as blended\n",
               run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(seed),

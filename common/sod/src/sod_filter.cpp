@@ -455,10 +455,26 @@ TimeUpdateSummary SodFilter::predict_linearised(TimeTT t) {
     Phi(StateLayout::kU, StateLayout::kA) = -1.5 * n_rad / o0.a_m * s.dt_s;
     for (int k = 0; k < layout_.n_targets; ++k) {
       const int off = layout_.target_offset(k);
-      const QnsElements tgt1 = target_prop_.propagate(astro::qns_from_roe(o0, Roe::from_vector(x_.segment<6>(off))), t_, t);
+      const Vec6 roe0 = x_.segment<6>(off);
+      const QnsElements tgt1 = target_prop_.propagate(astro::qns_from_roe(o0, Roe::from_vector(roe0)), t_, t);
       ++s.propagations;
-      x.segment<6>(off) = astro::roe_from_qns(o1, tgt1).as_vector();
-      Phi(off + StateLayout::kDlambda, off + StateLayout::kDa) = -1.5 * n_rad * s.dt_s;
+      const Vec6 roe1 = astro::roe_from_qns(o1, tgt1).as_vector();
+      x.segment<6>(off) = roe1;
+      // The target's block by differences over its 1-sigma (statistical
+      // linearisation, as the sigma points would see it): the osculating
+      // ROE's short-period J2 terms couple a dlambda known to hundreds of
+      // metres into the other ROE at the metre level, which a Keplerian or
+      // mean-J2 map leaves out of the thin directions of P.
+      for (int i = 0; i < 6; ++i) {
+        const double h = std::max(std::sqrt(std::max(P_(off + i, off + i), 0.0)), 1e-9);
+        Vec6 roe0_h = roe0;
+        roe0_h[i] += h;
+        const QnsElements tgt1_h = target_prop_.propagate(astro::qns_from_roe(o0, Roe::from_vector(roe0_h)), t_, t);
+        ++s.propagations;
+        Vec6 d = astro::roe_from_qns(o1, tgt1_h).as_vector() - roe1;
+        d[StateLayout::kDlambda] = astro::wrap_pi(d[StateLayout::kDlambda]);
+        Phi.block<6, 1>(off, off + i) = d / h;
+      }
     }
   } catch (const std::exception& e) {
     s.why = std::string("propagation of the mean failed: ") + e.what();
