@@ -322,8 +322,9 @@ class SodFilter {
   // A cheap prediction for telemetry and IMP's predictions over short
   // horizons (never the filter's own time update): the mean through the same
   // GVE-RK4 dynamics (one trajectory per body), the covariance through the
-  // linear Keplerian drift (du/da = -1.5 n / a, d(dlambda)/d(da) = -1.5 n; D'Amico
-  // 2010) and the auxiliary states' linear dynamics, plus Q |dt|.
+  // observer's Keplerian drift (du/da = -1.5 n / a), each target's 6x6 block by
+  // differences of the same propagation over its 1-sigma (six more target
+  // trajectories each) and the auxiliary states' linear dynamics, plus Q |dt|.
   TimeUpdateSummary predict_linearised(TimeTT t);
   // Unscented measurement updates; each propagates to the measurement epoch
   // first when it differs from epoch().
