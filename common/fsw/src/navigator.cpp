@@ -696,6 +696,11 @@ void Navigator::process(const Event& queued, const imp::Samus& samus) {
   report_aux();
 }
 
+astro::TimeTT Navigator::image_time(astro::TimeTT tag) const {
+  const astro::TimeTT t = tag.plus_seconds(time_tag_correction_s_);
+  return t.plus_seconds(-time_tag_offset_at(t));
+}
+
 double Navigator::time_tag_offset_at(astro::TimeTT t) const {
   if (!filter_ || filter_->layout().n_time_tag == 0) return 0.0;
   const auto& L = filter_->layout();
@@ -1652,7 +1657,8 @@ std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, co
   // SAMUS releases a track's measurements at most dbscan_frames + n_scan frames late.
   while (!direct_.empty() && astro::seconds_between(direct_.front().first, t) > 4.0 * 3600.0) direct_.pop_front();
   if (!filter_ || reinit_pending_ || candidates.empty()) return used;
-  const sod::SodFilter* fp = predicted_to(t);
+  // The target where the image saw it, on the plane of the candidates (the observer at the tag), as predictions().
+  const sod::SodFilter* fp = predicted_to(image_time(t));
   if (!fp) return used;
   const sod::SodFilter& f = *fp;
   // Every target's prediction and every free candidate's squared Mahalanobis distance to it.
@@ -1662,7 +1668,7 @@ std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, co
   std::vector<double> width(K, 1e9);
   for (std::size_t k = 0; k < K; ++k) {
     imp::TargetPrediction pr;
-    if (!has_estimate_[k] || !predict_plane(f, static_cast<int>(k), samus, pr)) continue;
+    if (!has_estimate_[k] || !predict_plane(f, static_cast<int>(k), samus, pr, t)) continue;
     have[k] = true;
     width[k] = std::sqrt(pr.cov.trace());
     for (std::size_t c = 0; c < C; ++c) {
@@ -1703,7 +1709,7 @@ bool Navigator::tracked(int k, astro::TimeTT t) const {
 std::vector<Navigator::PixelRegion> Navigator::untracked_regions(astro::TimeTT t, const PixelOf& pixel_of) const {
   std::vector<PixelRegion> out;
   if (!filter_ || reinit_pending_) return out;
-  const sod::SodFilter* fp = predicted_to(t);
+  const sod::SodFilter* fp = predicted_to(image_time(t));
   if (!fp) return out;
   const sod::SodFilter& f = *fp;
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
@@ -1746,14 +1752,11 @@ std::vector<imp::TargetPrediction> Navigator::predictions(astro::TimeTT t, const
     const astro::Vec6 sig = filter_->a_roe_sigma_m(as.target);
     if (!(sig[1] < opt_.aided_max_dlambda_fraction * a_roe.head<2>().norm())) continue;
     // SAMUS projects the frame's candidates with the observer at the frame's
-    // time tag t; the image saw the target at t_image, the tag corrected by
-    // the uplinked correction and SOD's estimated offset (PSE flight, -0.4 s
-    // tags: predicted at t, SOD's prediction was 3.9e-4 rad (n * 0.4 s) off
-    // every candidate, beyond the aided gate, and SV2's tracks broke every
-    // third of an orbit).
-    const astro::TimeTT t_tag = t.plus_seconds(time_tag_correction_s_);
-    const astro::TimeTT t_image = t_tag.plus_seconds(-time_tag_offset_at(t_tag));
-    if (!f && !(f = predicted_to(t_image))) return out;
+    // time tag t; the image saw the target at image_time(t) (PSE flight,
+    // -0.4 s tags: predicted at t, SOD's prediction was 3.9e-4 rad
+    // (n * 0.4 s) off every candidate, beyond the aided gate, and SV2's
+    // tracks broke every third of an orbit).
+    if (!f && !(f = predicted_to(image_time(t)))) return out;
     imp::TargetPrediction p;
     if (predict_plane(*f, as.target, samus, p, t)) {
       p.track_id = tid;

@@ -357,10 +357,12 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
           for (const auto& reg : navigator_->untracked_regions(tf, pixel_of)) {
             // Forced photometry at the prediction, every frame: the target's
             // brightness unselected by the noise, for the 1-sigma of its
-            // aided detections.
+            // aided detections; corrected for the prediction's spread.
             imp::ForcedPhotometry& photometry = forced_[reg.target];
             const auto expected = photometry.expected_before(tf_s);
-            if (const auto nu = processor_->forced_snr(pixels, reg.px, aided_options_)) photometry.add(tf_s, *nu);
+            if (const auto nu = processor_->forced_snr(pixels, reg.px, aided_options_)) {
+              photometry.add(tf_s, *nu, imp::forced_photometry_gain(reg.cov_px2, aided_options_.psf_sigma_px));
+            }
             const Eigen::Matrix2d S_inv =
                 (reg.cov_px2 + std::pow(aided_options_.psf_sigma_px, 2) * Eigen::Matrix2d::Identity()).inverse();
             const bool have = std::any_of(fr.candidates.begin(), fr.candidates.end(), [&](const imp::Candidate& c) {

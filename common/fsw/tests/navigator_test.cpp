@@ -439,3 +439,70 @@ TEST(NavigatorBod, BodRefutesAFalseAlarmOfCheck5AndSodIsKept) {
 
 }  // namespace
 }  // namespace artms::fsw
+
+// IMP's predictions for a frame whose time tag is early by the uplinked
+// correction (PSE flight: tags 0.4 s early, corrected by +0.4 s) are made
+// where the image saw the target: at the tag the line of sight of a target
+// 50 km behind is n * 0.4 s = 4e-4 rad (~2.5 px) away, which put SV3's
+// aided search region 3 of its 1-sigmas off the target and its forced
+// photometry beside it. A-priori = truth, 1 m.
+namespace artms::fsw {
+namespace {
+
+TEST(NavigatorTimeTags, UntrackedTargetsArePredictedAtTheImageTimeNotTheTag) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(1);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng(3);
+  config::ObserverUplink up = uplink_at_truth(truth, rng);
+  up.observer.camera.time_tag_correction_s = 0.4;
+  Navigator nav(up, j2_forces());
+  const imp::Samus samus;
+  for (int k = 0; k <= 10; ++k) {
+    const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+    truth.advance_to(t);
+    nav.add_gnss(truth.gnss(0.0, 0.0, false, nullptr));
+    nav.advance(t, t, samus);
+  }
+  // The frame tagged t_tag was taken at t_tag + 0.4 s.
+  const astro::TimeTT t_tag = kT0.plus_seconds(630.0), t_image = t_tag.plus_seconds(0.4);
+  truth.advance_to(t_tag);
+  const astro::StateVector observer_at_tag = truth.observer_eci();
+  const Eigen::Vector3d u_at_tag = (truth.target_eci(0).r_m - observer_at_tag.r_m).normalized();
+  truth.advance_to(t_image);
+  const Eigen::Vector3d u_seen = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
+  // A 5660 px camera pointed at the target.
+  const Eigen::Vector3d ex = u_seen.unitOrthogonal(), ey = u_seen.cross(ex);
+  const auto pixel_of = [&](const Eigen::Vector3d& u) -> std::optional<Eigen::Vector2d> {
+    return Eigen::Vector2d(640.0 + 5660.0 * u.dot(ex) / u.dot(u_seen), 512.0 + 5660.0 * u.dot(ey) / u.dot(u_seen));
+  };
+  const auto regions = nav.untracked_regions(t_tag, pixel_of);
+  ASSERT_EQ(regions.size(), 1u);
+  const double off_seen_px = (regions[0].px - *pixel_of(u_seen)).norm();
+  const double tag_to_seen_px = (*pixel_of(u_at_tag) - *pixel_of(u_seen)).norm();
+  std::printf("region centre %.3f px from where the image saw the target (%.2f px from the line of sight at the tag)\n",
+              off_seen_px, (regions[0].px - *pixel_of(u_at_tag)).norm());
+  EXPECT_GT(tag_to_seen_px, 1.5);  // what the correction is worth here
+  EXPECT_LT(off_seen_px, 0.1);
+  // The single-detection assignment likewise takes the candidate where the
+  // image saw it (SAMUS's tracking plane set by the frame), not one at the
+  // line of sight of the tag.
+  imp::Samus framed;
+  imp::TrackerInput in;
+  in.frame = 1;
+  in.t = t_tag;
+  in.observer_eci = observer_at_tag;
+  in.boresight_eci = u_seen;
+  framed.process(in, {});
+  imp::Candidate c;
+  c.u_eci = u_seen;
+  c.sigma_rad = 3.0 * astro::kArcsecToRad;
+  const auto used = nav.assign_untracked(t_tag, {c}, {}, observer_at_tag, framed);
+  ASSERT_EQ(used.size(), 1u);
+  EXPECT_EQ(used[0].second, 0);
+  c.u_eci = u_at_tag;
+  EXPECT_TRUE(nav.assign_untracked(t_tag, {c}, {}, observer_at_tag, framed).empty());
+}
+
+}  // namespace
+}  // namespace artms::fsw

@@ -180,18 +180,28 @@ std::optional<double> forced_snr(std::span<const std::uint16_t> pixels, int widt
   return m / std::sqrt(g2) / noise_dn;
 }
 
-void ForcedPhotometry::add(double t_s, double nu) {
-  seen_.emplace_back(t_s, nu);
+double forced_photometry_gain(const Eigen::Matrix2d& cov_px2, double psf_sigma_px) {
+  if (!cov_px2.allFinite() || !(psf_sigma_px > 0.0)) return 0.0;
+  const Eigen::Matrix2d m = Eigen::Matrix2d::Identity() + cov_px2 / (2.0 * psf_sigma_px * psf_sigma_px);
+  const double det = m.determinant();
+  return det >= 1.0 ? 1.0 / std::sqrt(det) : 1.0;  // a covariance that is not positive: no loss claimed
+}
+
+void ForcedPhotometry::add(double t_s, double nu, double gain) {
+  if (!(gain >= kMinGain) || !std::isfinite(nu)) return;
+  const double g = std::min(gain, 1.0);
+  seen_.push_back({t_s, nu / g, 1.0 / (g * g)});
   while (seen_.size() > 64) seen_.pop_front();
 }
 
 std::optional<SnrPrior> ForcedPhotometry::expected_before(double t_s, double window_s, int min_frames) const {
-  double sum = 0.0, sum2 = 0.0;
+  double sum = 0.0, sum2 = 0.0, noise = 0.0;
   int n = 0;
-  for (const auto& [t, nu] : seen_) {
-    if (t < t_s && t_s - t < window_s) {
-      sum += nu;
-      sum2 += nu * nu;
+  for (const auto& s : seen_) {
+    if (s.t_s < t_s && t_s - s.t_s < window_s) {
+      sum += s.nu_corrected;
+      sum2 += s.nu_corrected * s.nu_corrected;
+      noise += s.noise_variance;
       ++n;
     }
   }
@@ -200,12 +210,14 @@ std::optional<SnrPrior> ForcedPhotometry::expected_before(double t_s, double win
   p.frames = n;
   p.mean = sum / n;
   p.variance = n > 1 ? std::max(0.0, (sum2 - n * p.mean * p.mean) / (n - 1)) : 0.0;
+  p.noise_variance = noise / n;
   return p;
 }
 
 double snr_for_sigma(double nu_detection, const SnrPrior& prior) {
-  const double tau2 =
-      prior.frames >= 4 ? std::max(prior.variance - 1.0, 0.0) + prior.variance / prior.frames : 0.0;
+  const double tau2 = prior.frames >= 4
+                          ? std::max(prior.variance - prior.noise_variance, 0.0) + prior.variance / prior.frames
+                          : 0.0;
   return std::max(1.0, (tau2 * nu_detection + prior.mean) / (tau2 + 1.0));
 }
 

@@ -218,6 +218,43 @@ TEST(AidedDetection, ForcedPhotometryHistoryExcludesTheCurrentFrame) {
   EXPECT_FALSE(f.expected_before(1000.0).has_value());  // all older than the window
 }
 
+TEST(AidedDetection, ForcedPhotometryAtAnUncertainPredictionIsCorrectedByItsGain) {
+  // A steady source of 6 peak sigmas (nu_true = 6 sqrt(4 pi) s / (2 sqrt(pi)) = 12.8)
+  // measured at predictions scattered about it with covariance C: the forced
+  // SNR averages nu_true times forced_photometry_gain(C) (flight-like SV3: a
+  // prediction 1-sigma of ~1 px along-track read the source ~45 % fainter).
+  std::mt19937_64 rng(19);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double nu_true = 6.0 * kPsf * std::sqrt(M_PI);
+  Eigen::Matrix2d C;
+  C << 1.1 * 1.1, 0.0, 0.0, 0.4 * 0.4;
+  const double gain = forced_photometry_gain(C, kPsf);
+  ForcedPhotometry corrected;
+  double sum = 0.0;
+  const int n = 600;
+  for (int i = 0; i < n; ++i) {
+    const auto px = frame(rng, 100.0, 80.0, 6.0);
+    const Eigen::Vector2d pred(100.0 + 1.1 * g(rng), 80.0 + 0.4 * g(rng));
+    const auto nu = forced_snr(px, kW, kH, pred, kNoise, kPsf);
+    ASSERT_TRUE(nu.has_value());
+    sum += *nu;
+    if (i >= n - 60) corrected.add(60.0 * (i - (n - 60)), *nu, gain);
+  }
+  std::printf("gain %.3f: forced SNR %.2f of %.2f (ratio %.3f)\n", gain, sum / n, nu_true, sum / n / nu_true);
+  EXPECT_NEAR(gain, 1.0 / std::sqrt((1.0 + C(0, 0) / (2 * kPsf * kPsf)) * (1.0 + C(1, 1) / (2 * kPsf * kPsf))), 1e-12);
+  EXPECT_NEAR(sum / n / nu_true, gain, 0.04);
+  const auto prior = corrected.expected_before(3600.0, 3600.0);
+  ASSERT_TRUE(prior.has_value());
+  EXPECT_NEAR(prior->mean, nu_true, 0.1 * nu_true);
+  EXPECT_NEAR(prior->noise_variance, 1.0 / (gain * gain), 1e-9);
+  // A sharp prediction loses nothing; one wider than the PSF is not kept.
+  EXPECT_DOUBLE_EQ(forced_photometry_gain(Eigen::Matrix2d::Zero(), kPsf), 1.0);
+  ForcedPhotometry wide;
+  wide.add(0.0, 3.0, 0.3);
+  wide.add(60.0, 3.0, 0.3);
+  EXPECT_FALSE(wide.expected_before(120.0).has_value());
+}
+
 TEST(AidedDetection, SnrForSigmaWeighsTheHistoryByTheTargetsFlicker) {
   // Steady target: the forced values scatter by the noise alone (variance 1).
   EXPECT_NEAR(snr_for_sigma(9.0, {6.0, 1.0, 10}), (0.1 * 9.0 + 6.0) / 1.1, 1e-12);

@@ -219,7 +219,7 @@ class Navigator {
   void add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci,
                   double imp_sigma_rad);
   // Validity regions in pixels of the targets assign_untracked would
-  // consider (no active bound track) at frame time t, for SOD-aided
+  // consider (no active bound track) in the frame tagged t, for SOD-aided
   // detection (imp::FrameProcessor::aided_candidate): the unscented
   // transform of the filter state through pixel_of (a unit line of sight,
   // ECI, to a pixel of this frame; nullopt off the sensor).
@@ -379,6 +379,10 @@ class Navigator {
   void report_aux();
   // SOD's estimate of the camera's time-tag offset at t (0 without the state).
   [[nodiscard]] double time_tag_offset_at(astro::TimeTT t) const;
+  // When a frame tagged `tag` was taken: the tag plus the uplinked
+  // correction, less SOD's estimated offset. IMP's predictions
+  // (predictions, assign_untracked, untracked_regions) are made there.
+  [[nodiscard]] astro::TimeTT image_time(astro::TimeTT tag) const;
   std::size_t bod_attempts_ = 0, bod_usable_ = 0;
   std::vector<bus::BodAttempt> bod_records_;
   // Per target: its bound track's bearings were refused by the gate and none

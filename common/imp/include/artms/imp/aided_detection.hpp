@@ -78,30 +78,45 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
 [[nodiscard]] std::optional<double> forced_snr(std::span<const std::uint16_t> pixels, int width, int height,
                                                const Eigen::Vector2d& px, double noise_dn, double psf_sigma_px);
 
+// The fraction of a source's matched-filter SNR that forced photometry
+// measures at a prediction of covariance cov_px2 (pixels^2), on average:
+// the kernel's overlap with a Gaussian spot offset by d is exp(-|d|^2 / (4 s^2)),
+// and over d ~ N(0, C) its mean is det(I + C / (2 s^2))^(-1/2).
+[[nodiscard]] double forced_photometry_gain(const Eigen::Matrix2d& cov_px2, double psf_sigma_px);
+
 // A target's recent forced-photometry SNRs (one per frame at its predicted
-// pixel). expected_before(t) is their mean over (t - window_s, t), the
-// current frame excluded, when at least min_frames are there.
+// pixel), each divided by its gain (forced_photometry_gain), so that a
+// prediction wider than the PSF does not read as a fainter source; frames
+// with gain below kMinGain (a prediction 1-sigma of about the PSF sigma or
+// more) measure the prediction's error more than the source and are not
+// kept. expected_before(t) is their mean over (t - window_s, t), the current
+// frame excluded, when at least min_frames are there.
 struct SnrPrior {
-  double mean = 0.0;      // mean forced SNR of the recent frames
-  double variance = 0.0;  // their sample variance (0 with fewer than 2 frames)
+  double mean = 0.0;            // mean gain-corrected forced SNR of the recent frames
+  double variance = 0.0;        // their sample variance (0 with fewer than 2 frames)
   int frames = 0;
+  double noise_variance = 1.0;  // the noise's part of that variance: mean of 1 / gain^2
 };
 class ForcedPhotometry {
  public:
-  void add(double t_s, double nu);
+  static constexpr double kMinGain = 0.5;
+  void add(double t_s, double nu, double gain = 1.0);
   [[nodiscard]] std::optional<SnrPrior> expected_before(double t_s, double window_s = 600.0, int min_frames = 2) const;
 
  private:
-  std::deque<std::pair<double, double>> seen_;  // (t_s, nu), oldest first
+  struct Seen {
+    double t_s, nu_corrected, noise_variance;
+  };
+  std::deque<Seen> seen_;  // oldest first
 };
 
 // The SNR for an aided detection's 1-sigma: the current frame's true SNR
 // estimated from the detection's own nu (noise 1-sigma 1) and the recent
 // frames' forced photometry as a prior (docs/imp_samus.md section 9),
 //   nu = (tau^2 nu_detection + mean) / (tau^2 + 1),
-//   tau^2 = max(variance - 1, 0) + variance / frames,
+//   tau^2 = max(variance - noise_variance, 0) + variance / frames,
 // tau^2 the spread of the true SNR from frame to frame (the forced values
-// scatter by the noise's 1 plus the target's own fluctuation; flight-like
+// scatter by the noise (1 / gain^2) plus the target's own fluctuation; flight-like
 // targets flicker by 0.3 mag) plus the uncertainty of the mean. A steady
 // target gets the history's mean (a detection near the threshold is one the
 // noise lifted, so its own nu over-states the source); a flickering one
