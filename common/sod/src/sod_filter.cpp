@@ -330,7 +330,10 @@ void SodFilter::adapt_process_noise() {
     const double f_t = std::abs((astro::R_rtn_from_eci(xo) * forces_.unit_ballistic_drag_eci(t_, xo))[1]);
     const double period_s = astro::orbit_period_s(obs.a_m);
     for (int k = 0; k < layout_.n_targets; ++k) {
-      const double sigma = o.drag_density_error * std::abs(x_[layout_.ballistic_index(k)]) * f_t;
+      // |dB| estimated without the estimate's own spread: E[dB^2] = dB_true^2 + sigma_B^2.
+      const int ib = layout_.ballistic_index(k);
+      const double db = std::sqrt(std::max(x_[ib] * x_[ib] - P_(ib, ib), 0.0));
+      const double sigma = o.drag_density_error * db * f_t;
       floor_add.segment<6>(layout_.target_offset(k)) = target_along_track_process_noise(obs.a_m, sigma, period_s);
     }
   }

@@ -267,9 +267,10 @@ TEST(SodProcessNoise, TargetAlongTrackNoiseThroughGaussEquations) {
 // The drag floor (docs/sod.md): a target estimated with a differential
 // ballistic coefficient of twice the nominal Cd A/m gets, after an adaptive
 // step, a process noise at least floor x nominal + the unmodelled drag's
-// (density error x |dB| x the onboard drag per unit B) in the Loewner order;
-// a target with dB = 0 gets the same noise as without the floor, and so does
-// every target when the option is 0.
+// (density error x |dB| x the onboard drag per unit B, |dB| the estimate's
+// magnitude less its own spread, sqrt(dB^2 - sigma_B^2)) in the Loewner
+// order; a target with dB = 0 gets the same noise as without the floor, and
+// so does every target when the option is 0.
 TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   static const dynamics::ForceModel drag_forces =
       dynamics::ForceModel::load(dynamics::ForceModelOptions::parse("grav2_0,drag"), ARTMS_DATA_DIR);
@@ -279,7 +280,8 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   layout.ballistic = true;
   astro::QnsElements obs = testing::observer_at_start();
   obs.a_m = astro::kRadiusEarth_m + 450e3;
-  VectorXd x_seen;  // the state the adaptation sees: after the update at 60 s
+  VectorXd x_seen;  // the state and covariance the adaptation sees: after the update at 60 s
+  MatrixXd P_seen;
   const auto run = [&](double density_error) {
     SodOptions o;
     o.adaptive.form = AdaptiveNoiseForm::kBlock;
@@ -306,6 +308,7 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
     gm.sigma_v_mps = 0.01;
     EXPECT_TRUE(f->update_gnss(gm).usable);
     x_seen = f->state();
+    P_seen = f->covariance();
     // The adaptation is applied at the start of the next time update.
     EXPECT_TRUE(f->time_update(kT0.plus_seconds(120.0)).usable);
     return f;
@@ -320,7 +323,10 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   // Cannonball drag per unit B: 0.5 rho v^2 with rho of 1e-14 .. 1e-11 kg/m^3 at 450 km.
   EXPECT_GT(f_t, 0.5 * 1e-14 * 7.6e3 * 7.6e3);
   EXPECT_LT(f_t, 0.5 * 1e-11 * 7.7e3 * 7.7e3);
-  const Vec6 D = target_along_track_process_noise(o1.a_m, error * 2.0 * B * f_t, astro::orbit_period_s(o1.a_m));
+  const int ib = layout.ballistic_index(0);
+  const double db = std::sqrt(x_seen[ib] * x_seen[ib] - P_seen(ib, ib));
+  EXPECT_NEAR(db, std::sqrt(3.0) * B, 0.01 * B);  // 2 B estimated, 1-sigma B
+  const Vec6 D = target_along_track_process_noise(o1.a_m, error * db * f_t, astro::orbit_period_s(o1.a_m));
   const int off0 = layout.target_offset(0), off1 = layout.target_offset(1);
   const Vec6 N = SodOptions{}.q_target_a_roe_m2ps / (obs.a_m * obs.a_m);  // the nominal at initialisation
   const Vec6 F_inv_sqrt = (SodOptions{}.adaptive.floor_factor * N + D).cwiseSqrt().cwiseInverse();
