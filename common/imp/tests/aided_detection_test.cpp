@@ -219,7 +219,7 @@ TEST(AidedDetection, ForcedPhotometryHistoryExcludesTheCurrentFrame) {
 }
 
 TEST(AidedDetection, ForcedPhotometryAtAnUncertainPredictionIsCorrectedByItsGain) {
-  // A steady source of 6 peak sigmas (nu_true = 6 sqrt(4 pi) s / (2 sqrt(pi)) = 12.8)
+  // A steady source of 6 peak sigmas (matched-filter nu_true = 6 sqrt(pi) s = 12.8)
   // measured at predictions scattered about it with covariance C: the forced
   // SNR averages nu_true times forced_photometry_gain(C) (flight-like SV3: a
   // prediction 1-sigma of ~1 px along-track read the source ~45 % fainter).

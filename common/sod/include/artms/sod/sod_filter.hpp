@@ -64,9 +64,9 @@ struct AdaptiveNoiseOptions {
   // The onboard density's expected relative error along the orbit (0: off).
   // A target whose differential ballistic coefficient is estimated at dB^
   // (1-sigma sigma_B) has sqrt(max(dB^2 - sigma_B^2, 0)) x this x the onboard
-  // drag per unit B of unmodelled along-track acceleration; its ROE rate (Gauss, correlated over one orbit) is added to
-  // the floor of the target's adaptive process noise (docs/sod.md,
-  // "The drag floor").
+  // drag per unit B of unmodelled along-track acceleration; its ROE rate
+  // (Gauss, correlated over one orbit) is added to the floor of the target's
+  // adaptive process noise (docs/sod.md, "The drag floor").
   double drag_density_error = 0.0;
 };
 
