@@ -329,9 +329,12 @@ int run(int argc, char** argv) {
                  "leave out the bearings of frames where another target's true pixel is this close (blended spots)")
       ->capture_default_str();
   app.add_option("--after-orbits", after_orbits, "NEES averaged from this many orbits on")->capture_default_str();
-  std::optional<double> underweighting, q_scale;
+  std::optional<double> underweighting, underweighting_nonlinearity, q_scale;
   std::optional<bool> adaptive;
   app.add_option("--underweighting", underweighting, "override tuning.sod.underweighting (beta >= 0)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--underweighting-nonlinearity", underweighting_nonlinearity,
+                 "override tuning.sod.underweighting_nonlinearity (>= 0; 0: the predicted spread alone decides)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--process-noise-scale", q_scale, "override tuning.sod.process_noise_scale")
       ->check(CLI::NonNegativeNumber);
@@ -379,6 +382,7 @@ int run(int argc, char** argv) {
   // The scenario's SOD tuning with the command line's overrides.
   config::SodTuning tuning = up.tuning.sod;
   tuning.underweighting = underweighting.value_or(tuning.underweighting);
+  tuning.underweighting_nonlinearity = underweighting_nonlinearity.value_or(tuning.underweighting_nonlinearity);
   tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
   tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
   tuning.drag_density_error = drag_density_error.value_or(tuning.drag_density_error);

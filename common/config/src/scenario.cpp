@@ -1383,7 +1383,7 @@ class Parser {
     if (const Val* sv = m.find("sod")) {
       Map sm(ctx_, *sv,
              {"period", "bearing_sigma_arcsec", "eps_assign", "eps_ambig",
-              "max_steps_without_update", "max_large_residuals", "underweighting",
+              "max_steps_without_update", "max_large_residuals", "underweighting", "underweighting_nonlinearity",
               "adaptive_process_noise", "adaptive_form", "adaptive_average", "drag_density_error", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
               "ballistic", "observer_acceleration_sigma_mps2", "target_lines"});
       if (sm.ok()) {
@@ -1404,6 +1404,8 @@ class Parser {
         int_field(ctx_, sm, "max_steps_without_update", t.sod.max_steps_without_update, 1, kBig);
         int_field(ctx_, sm, "max_large_residuals", t.sod.max_large_residuals, 1, kBig);
         number_field(ctx_, sm, "underweighting", t.sod.underweighting, non_negative());
+        number_field(ctx_, sm, "underweighting_nonlinearity", t.sod.underweighting_nonlinearity,
+                     non_negative("0 = underweight while the predicted spread exceeds R"));
         bool_field(ctx_, sm, "adaptive_process_noise", t.sod.adaptive_process_noise);
         using F = SodTuning::AdaptiveForm;
         using A = SodTuning::AdaptiveAverage;

@@ -174,6 +174,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"max_steps_without_update", u.tuning.sod.max_steps_without_update},
           {"max_large_residuals", u.tuning.sod.max_large_residuals},
           {"underweighting", u.tuning.sod.underweighting},
+          {"underweighting_nonlinearity", u.tuning.sod.underweighting_nonlinearity},
           {"adaptive_process_noise", u.tuning.sod.adaptive_process_noise},
           {"adaptive_form", u.tuning.sod.adaptive_form == SodTuning::AdaptiveForm::kBlock ? "block" : "diagonal"},
           {"adaptive_average",
@@ -314,6 +315,7 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.max_steps_without_update = sod.at("max_steps_without_update").get<int>();
     u.tuning.sod.max_large_residuals = sod.at("max_large_residuals").get<int>();
     u.tuning.sod.underweighting = sod.at("underweighting").get<double>();
+    u.tuning.sod.underweighting_nonlinearity = sod.value("underweighting_nonlinearity", 0.0);  // older uplinks: off
     u.tuning.sod.adaptive_process_noise = sod.at("adaptive_process_noise").get<bool>();
     const std::string form = sod.value("adaptive_form", std::string("diagonal"));  // older uplinks: the default
     if (form == "diagonal") u.tuning.sod.adaptive_form = SodTuning::AdaptiveForm::kDiagonal;

@@ -93,6 +93,7 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   o.health.max_steps_without_update = t.max_steps_without_update;
   o.health.max_large_residuals = t.max_large_residuals;
   o.bearing_underweighting = t.underweighting;
+  o.bearing_underweighting_nonlinearity = t.underweighting_nonlinearity;
   o.adaptive.enabled = t.adaptive_process_noise;
   o.adaptive.form = t.adaptive_form == config::SodTuning::AdaptiveForm::kBlock ? sod::AdaptiveNoiseForm::kBlock
                                                                                 : sod::AdaptiveNoiseForm::kDiagonal;

@@ -88,6 +88,8 @@ void SodOptions::validate() const {
           "adaptive.drag_density_error", "must be in [0, 10]");
   require(bearing_gate_mahalanobis > 0.0, "bearing_gate_mahalanobis", "must be > 0 (inf disables)");
   require(bearing_underweighting >= 0.0 && std::isfinite(bearing_underweighting), "bearing_underweighting", "must be >= 0");
+  require(bearing_underweighting_nonlinearity >= 0.0 && std::isfinite(bearing_underweighting_nonlinearity),
+          "bearing_underweighting_nonlinearity", "must be >= 0");
   require(gnss_gate_mahalanobis > 0.0, "gnss_gate_mahalanobis", "must be > 0 (inf disables)");
   require(health.bod_max_mahalanobis > 0.0, "health.bod_max_mahalanobis", "must be > 0");
   require(health.bod_max_relative > 0.0, "health.bod_max_relative", "must be > 0");
@@ -188,6 +190,7 @@ struct SodFilter::MeasurementModel {
   // Components of z that are angles (residuals wrapped).
   std::vector<bool> angle;
   double underweighting = 0.0;  // beta (SodOptions::bearing_underweighting)
+  double nonlinearity = 0.0;    // SodOptions::bearing_underweighting_nonlinearity
   // The first `consider` states are consider parameters (Schmidt-Kalman):
   // their gain rows are zero.
   int consider = 0;
@@ -275,6 +278,7 @@ void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
   consecutive_large_gnss_ = 0;
   rejected_total_ = 0;
   recent_nis_count_.assign(layout_.n_targets, 0);
+  prior_unconfirmed_.assign(layout_.n_targets, 0);  // a modelled a-priori, not a guess
   gnss_nis_count_ = 0;
   gnss_white_count_ = 0;
   initialized_ = true;
@@ -613,7 +617,17 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
     Pxz.noalias() += wc_[j] * dx * dz.transpose();
   }
   const double beta = model.underweighting;
-  MatrixXd S = (beta > 0.0 && Pzz.trace() > R.trace() ? 1.0 + beta : 1.0) * Pzz + R;
+  if (beta > 0.0 || model.nonlinearity > 0.0) {
+    const Eigen::LDLT<MatrixXd> ldlt_p(P_);
+    const MatrixXd omega = Pzz - Pxz.transpose() * ldlt_p.solve(Pxz);
+    s.nonlinearity = omega.trace() / R.trace();
+  }
+  const bool target_bearing = target >= 0 && target < layout_.n_targets && !dry_run;
+  const bool unconfirmed = target_bearing && prior_unconfirmed_[static_cast<std::size_t>(target)] != 0;
+  s.underweighted = beta > 0.0 && Pzz.trace() > R.trace() &&
+                    (model.nonlinearity <= 0.0 || unconfirmed || s.nonlinearity > model.nonlinearity);
+  if (target_bearing && Pzz.trace() <= R.trace()) prior_unconfirmed_[static_cast<std::size_t>(target)] = 0;
+  MatrixXd S = (s.underweighted ? 1.0 + beta : 1.0) * Pzz + R;
   S = 0.5 * (S + S.transpose());
   s.prefit_residual = wrap_z(z - z_mean);
   const Eigen::LLT<MatrixXd> llt_s(S);
@@ -726,6 +740,7 @@ UpdateSummary SodFilter::update_bearing(const BearingMeasurement& meas) {
   model.cutoff = layout_.n_time_tag > 0 ? layout_.time_tag_offset() + 1 : off + StateLayout::kBlock;
   model.angle = {true, true};
   model.underweighting = options_.bearing_underweighting;
+  model.nonlinearity = options_.bearing_underweighting_nonlinearity;
   const int i_dt = layout_.n_time_tag > 0 ? layout_.time_tag_offset() : -1;
   model.h = [off, gm, R, i_dt](const VectorXd& x) -> VectorXd {
     const QnsElements obs = QnsElements::from_vector(x.head<6>());
@@ -781,6 +796,7 @@ UpdateSummary SodFilter::update_line_of_sight(const LineOfSightMeasurement& meas
   model.cutoff = hi >= 0 ? layout_.target_offset(hi) + StateLayout::kBlock : StateLayout::kBlock;
   model.angle = {true, true};
   model.underweighting = options_.bearing_underweighting;
+  model.nonlinearity = options_.bearing_underweighting_nonlinearity;
   if (options_.target_to_target_consider_observer && meas.from >= 0 && meas.to >= 0) {
     model.consider = StateLayout::kBlock;
   }
@@ -882,6 +898,7 @@ TimeUpdateSummary SodFilter::apply_observer_maneuver(TimeTT t, const Vec3& dv_rt
     s.why = "covariance after the maneuver not positive definite (or state not finite)";
     return s;
   }
+  prior_unconfirmed_.assign(layout_.n_targets, 1);
   s.usable = true;
   return s;
 }
@@ -1011,6 +1028,7 @@ void SodFilter::reinitialize_target(int target, const Vec6& roe, const Mat6& P_r
   counters_[target] = {};
   bod_status_[target] = {};
   recent_nis_count_[static_cast<std::size_t>(target)] = 0;
+  prior_unconfirmed_[static_cast<std::size_t>(target)] = 1;
 }
 
 void SodFilter::inflate_target(int target, double factor) {
@@ -1023,6 +1041,7 @@ void SodFilter::inflate_target(int target, double factor) {
   if (layout_.ballistic) scale[layout_.ballistic_index(target)] = std::sqrt(factor);
   P_ = scale.asDiagonal() * P_ * scale.asDiagonal();
   recent_nis_count_[static_cast<std::size_t>(target)] = 0;
+  prior_unconfirmed_[static_cast<std::size_t>(target)] = 1;
   counters_[target].consecutive_large_residuals = 0;
 }
 
@@ -1053,6 +1072,7 @@ void SodFilter::inflate_target_maneuver(int target, double sigma_dv_mps, double 
   P_.block<6, 6>(off, off) += Q / (a * a);
   P_ = 0.5 * (P_ + P_.transpose());
   recent_nis_count_[static_cast<std::size_t>(target)] = 0;
+  prior_unconfirmed_[static_cast<std::size_t>(target)] = 1;
   counters_[target].consecutive_large_residuals = 0;
 }
 
@@ -1128,6 +1148,13 @@ void SodFilter::reinitialize_observer(const QnsElements& observer, const Mat6& P
   P_.topLeftCorner<6, 6>() = 0.5 * (P + P.transpose());
   steps_without_update_ = 0;
   consecutive_large_gnss_ = 0;
+  prior_unconfirmed_.assign(layout_.n_targets, 1);
+}
+
+bool SodFilter::prior_unconfirmed(int target) const {
+  if (target < 0 || target >= layout_.n_targets)
+    throw std::invalid_argument("SodFilter::prior_unconfirmed: target index out of range");
+  return prior_unconfirmed_[static_cast<std::size_t>(target)] != 0;
 }
 
 // ---------------------------------------------------------------- accessors

@@ -294,5 +294,85 @@ TEST(SodUnderweighting, LimitsTheCollapseOfAWidePriorAndIsValidated) {
   EXPECT_THROW(bad.validate(), std::invalid_argument);
 }
 
+TEST(SodUnderweighting, NonlinearityTriggerReleasesABearingLinearOverItsPrior) {
+  // The statistic trace(P_zz - P_zx P^-1 P_xz) / trace R is the part of the
+  // predicted bearing spread that no linear map of the state explains. A
+  // prior known to 0.05 % in a*dlambda and 2 m elsewhere still spreads the
+  // bearing beyond a 2" noise (the spread rule underweights it) but is
+  // linear over it; a 1 % / 20 m prior is not. A prior made a guess (by an
+  // inflation) is confirmed by a bearing whose spread is within its noise
+  // (here a 1-degree one); the a-priori of initialize() is not a guess.
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(1);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  const auto precise = truth.bearing(0, 2 * astro::kArcsecToRad, 0.0, nullptr);
+  const auto coarse = truth.bearing(0, 3600 * astro::kArcsecToRad, 0.0, nullptr);
+  const auto update = [&](double dlambda_frac, double other_m, double kappa, bool confirm) {
+    SodOptions o;
+    o.bearing_underweighting = 0.5;
+    o.bearing_underweighting_nonlinearity = kappa;
+    SodFilter f(j2_forces(), {}, {}, StateLayout{1, 0}, o);
+    const auto g = shifted_initial_guess(observer_at_start(), a_roe, dlambda_frac, other_m);
+    f.initialize(kT0, g.x, g.P);
+    if (!confirm) f.inflate_target(0, 1.0);  // a guessed prior: the spread rule until confirmed
+    EXPECT_TRUE(f.prior_unconfirmed(0) != confirm);
+    if (confirm) {
+      const UpdateSummary c = f.update_bearing(coarse);
+      EXPECT_TRUE(c.usable) << c.why;
+      EXPECT_FALSE(c.underweighted);
+      EXPECT_FALSE(f.prior_unconfirmed(0));
+    }
+    const UpdateSummary u = f.update_bearing(precise);
+    EXPECT_TRUE(u.usable) << u.why;
+    return std::make_pair(u, f.a_roe_sigma_m(0));
+  };
+  const auto [tight_spread, sig_spread] = update(0.0005, 2.0, 0.0, true);
+  const auto [tight_guess, sig_guess] = update(0.0005, 2.0, 0.01, false);
+  const auto [tight_nl, sig_nl] = update(0.0005, 2.0, 0.01, true);
+  const auto [wide_nl, sig_wide] = update(0.01, 20.0, 0.01, true);
+  const auto [wider_nl, sig_wider] = update(0.02, 40.0, 0.01, true);
+  std::printf("nonlinearity / R: tight prior %.2e, wide %.3g, twice as wide %.3g\n", tight_nl.nonlinearity,
+              wide_nl.nonlinearity, wider_nl.nonlinearity);
+  EXPECT_TRUE(tight_spread.underweighted);
+  EXPECT_TRUE(tight_guess.underweighted);  // a guessed prior: the spread rule
+  EXPECT_LT(tight_nl.nonlinearity, 1e-3);
+  EXPECT_FALSE(tight_nl.underweighted);
+  EXPECT_GT(wide_nl.nonlinearity, 0.01);
+  EXPECT_TRUE(wide_nl.underweighted);
+  // Second order in the prior's spread: twice the spread, ~16 times the statistic.
+  EXPECT_GT(wider_nl.nonlinearity / wide_nl.nonlinearity, 8.0);
+  EXPECT_LT(wider_nl.nonlinearity / wide_nl.nonlinearity, 32.0);
+  // Released, the linear bearing gets the plain update: a tighter posterior.
+  EXPECT_LT(sig_nl.cwiseQuotient(sig_spread).minCoeff(), 0.95);
+  // Inflation, re-initialisation and a manoeuvre of the observer make the prior a guess again.
+  SodOptions o;
+  o.bearing_underweighting = 0.5;
+  o.bearing_underweighting_nonlinearity = 0.01;
+  SodFilter f(j2_forces(), {}, {}, StateLayout{1, 0}, o);
+  const auto g = shifted_initial_guess(observer_at_start(), a_roe, 0.0005, 2.0);
+  f.initialize(kT0, g.x, g.P);
+  EXPECT_FALSE(f.prior_unconfirmed(0));
+  const auto confirm = [&] {
+    ASSERT_TRUE(f.update_bearing(coarse).usable);
+    ASSERT_FALSE(f.prior_unconfirmed(0));
+  };
+  confirm();
+  f.inflate_target(0, 4.0);
+  EXPECT_TRUE(f.prior_unconfirmed(0));
+  confirm();
+  f.inflate_target_maneuver(0, 0.01, 0.0);
+  EXPECT_TRUE(f.prior_unconfirmed(0));
+  confirm();
+  ASSERT_TRUE(f.apply_observer_maneuver(kT0, astro::Vec3::Zero(), astro::Mat3::Identity() * 1e-6).usable);
+  EXPECT_TRUE(f.prior_unconfirmed(0));
+  confirm();
+  f.reinitialize_target(0, g.x.segment<6>(6), g.P.block<6, 6>(6, 6));
+  EXPECT_TRUE(f.prior_unconfirmed(0));
+  EXPECT_THROW((void)f.prior_unconfirmed(1), std::invalid_argument);
+  SodOptions bad;
+  bad.bearing_underweighting_nonlinearity = -0.1;
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace artms::sod

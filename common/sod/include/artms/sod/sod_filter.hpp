@@ -144,6 +144,15 @@ struct SodOptions {
   // that one bearing cannot collapse a wide, nonlinear prior (a stale
   // a-priori, a target seen for the first time). 0 disables.
   double bearing_underweighting = 0.0;
+  // When > 0, a bearing whose spread exceeds its noise is underweighted only
+  // if it is also nonlinear over the prior: the part of P_zz that no linear
+  // map of the state explains, Omega = P_zz - P_zx P^-1 P_xz (the
+  // statistical linearisation's error), must exceed this ratio times R
+  // (traces) too; except while the target's prior is a guess (after an
+  // inflation, a re-initialisation, a manoeuvre of the observer, until a
+  // bearing's spread falls within its noise: prior_unconfirmed()), when the
+  // spread alone decides. 0: the spread alone, always.
+  double bearing_underweighting_nonlinearity = 0.0;
   double gnss_gate_mahalanobis = 6.0;
   // A line of sight between two targets (another observer's bearing of a
   // third spacecraft) updates the relative orbits only: the observer's own
@@ -250,6 +259,10 @@ struct UpdateSummary {
   VectorXd prefit_residual;   // z - h(x-), angles wrapped to (-pi, pi]
   VectorXd postfit_residual;  // z - h(x+), when usable
   double nis = kNaN;          // nu^T S^-1 nu
+  // trace(P_zz - P_zx P^-1 P_xz) / trace(R): the predicted measurement's
+  // spread that no linear map of the state explains, against the noise.
+  double nonlinearity = kNaN;
+  bool underweighted = false;
   double mahalanobis = kNaN;  // sqrt(nis)
   [[nodiscard]] std::string brief_report() const;
 };
@@ -389,6 +402,13 @@ class SodFilter {
   // From the latest estimate passed to check_bod(); false if there is none.
   bool reinitialize_target_from_bod(int target);
   void reinitialize_observer(const astro::QnsElements& observer, const Mat6& P);
+  // True from the target's re-initialisation or inflation, or a manoeuvre or
+  // re-initialisation of the observer, until one of the target's bearings
+  // has a predicted spread within its noise (trace P_zz <= trace R): while
+  // true, the spread alone decides the underweighting
+  // (SodOptions::bearing_underweighting_nonlinearity). False after
+  // initialize(): its covariance is a modelled a-priori, not a guess.
+  [[nodiscard]] bool prior_unconfirmed(int target) const;
 
   // Normalised estimation error squared (x^ - x)^T P^-1 (x^ - x), angles
   // wrapped; NaN if P is not positive definite. x_true has layout().size().
@@ -461,6 +481,7 @@ class SodFilter {
   std::vector<std::vector<double>> recent_nis_;  // ring buffers, health.nis_window each
   std::vector<std::vector<TimeTT>> recent_nis_t_;
   std::vector<int> recent_nis_count_;
+  std::vector<char> prior_unconfirmed_;  // per target, see prior_unconfirmed()
   std::vector<double> gnss_nis_;
   int gnss_nis_count_ = 0;
   std::vector<Vec6> gnss_white_rtn_;  // ring buffer, health.gnss_bias_window
