@@ -617,16 +617,18 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
     Pxz.noalias() += wc_[j] * dx * dz.transpose();
   }
   const double beta = model.underweighting;
-  if (beta > 0.0 || model.nonlinearity > 0.0) {
+  const bool wide = Pzz.trace() > R.trace();
+  // The nonlinearity (an n x n factorisation) only where it can decide.
+  if (beta > 0.0 && wide && model.nonlinearity > 0.0) {
     const Eigen::LDLT<MatrixXd> ldlt_p(P_);
     const MatrixXd omega = Pzz - Pxz.transpose() * ldlt_p.solve(Pxz);
     s.nonlinearity = omega.trace() / R.trace();
   }
   const bool target_bearing = target >= 0 && target < layout_.n_targets && !dry_run;
   const bool unconfirmed = target_bearing && prior_unconfirmed_[static_cast<std::size_t>(target)] != 0;
-  s.underweighted = beta > 0.0 && Pzz.trace() > R.trace() &&
+  s.underweighted = beta > 0.0 && wide &&
                     (model.nonlinearity <= 0.0 || unconfirmed || s.nonlinearity > model.nonlinearity);
-  if (target_bearing && Pzz.trace() <= R.trace()) prior_unconfirmed_[static_cast<std::size_t>(target)] = 0;
+  if (target_bearing && !wide) prior_unconfirmed_[static_cast<std::size_t>(target)] = 0;
   MatrixXd S = (s.underweighted ? 1.0 + beta : 1.0) * Pzz + R;
   S = 0.5 * (S + S.transpose());
   s.prefit_residual = wrap_z(z - z_mean);

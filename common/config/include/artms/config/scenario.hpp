@@ -191,7 +191,9 @@ struct SodTuning {
   int max_large_residuals = 10;
   double underweighting = 0.5;        // beta of measurement underweighting (docs/sod.md)
   // > 0: underweight only while trace(P_zz - P_zx P^-1 P_xz) > this x trace R
-  // too (a bearing nonlinear over the prior); 0: while trace P_zz > trace R.
+  // too (a bearing nonlinear over the prior), unless the target's prior is a
+  // guess (sod::SodOptions::bearing_underweighting_nonlinearity); 0: while
+  // trace P_zz > trace R.
   double underweighting_nonlinearity = 0.0;
   bool adaptive_process_noise = true;  // paper: adaptive process noise estimation
   // Which entries adapt, and whether the recursion runs on the clamped rate

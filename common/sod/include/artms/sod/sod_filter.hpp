@@ -261,6 +261,8 @@ struct UpdateSummary {
   double nis = kNaN;          // nu^T S^-1 nu
   // trace(P_zz - P_zx P^-1 P_xz) / trace(R): the predicted measurement's
   // spread that no linear map of the state explains, against the noise.
+  // Computed only where it decides the underweighting (beta > 0,
+  // trace P_zz > trace R, bearing_underweighting_nonlinearity > 0); NaN else.
   double nonlinearity = kNaN;
   bool underweighted = false;
   double mahalanobis = kNaN;  // sqrt(nis)
