@@ -1384,7 +1384,7 @@ class Parser {
       Map sm(ctx_, *sv,
              {"period", "bearing_sigma_arcsec", "eps_assign", "eps_ambig",
               "max_steps_without_update", "max_large_residuals", "underweighting", "underweighting_nonlinearity",
-              "adaptive_process_noise", "adaptive_form", "adaptive_average", "drag_density_error", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
+              "adaptive_process_noise", "adaptive_form", "adaptive_average", "adaptive_time_constant", "drag_density_error", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
               "ballistic", "observer_acceleration_sigma_mps2", "target_lines"});
       if (sm.ok()) {
         duration_field(ctx_, sm, "period", t.sod.period_s, false);
@@ -1416,6 +1416,11 @@ class Parser {
         if (const Val* av = sm.find("adaptive_average")) {
           choice<A>(ctx_, *av, "clamped or unclamped", {{"clamped", A::kClamped}, {"unclamped", A::kUnclamped}},
                     t.sod.adaptive_average);
+        }
+        if (duration_field(ctx_, sm, "adaptive_time_constant", t.sod.adaptive_time_constant_s, false) &&
+            t.sod.adaptive_time_constant_s > 30.0 * 86400.0) {
+          ctx_.error(*sm.find("adaptive_time_constant"),
+                     "out of range: expected at most 30 days, got " + fmt_num(t.sod.adaptive_time_constant_s) + " s");
         }
         number_field(ctx_, sm, "process_noise_scale", t.sod.process_noise_scale, positive());
         number_field(ctx_, sm, "drag_density_error", t.sod.drag_density_error, Range{0.0, 10.0, true, true});

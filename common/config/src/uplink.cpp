@@ -179,6 +179,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"adaptive_form", u.tuning.sod.adaptive_form == SodTuning::AdaptiveForm::kBlock ? "block" : "diagonal"},
           {"adaptive_average",
            u.tuning.sod.adaptive_average == SodTuning::AdaptiveAverage::kUnclamped ? "unclamped" : "clamped"},
+          {"adaptive_time_constant_s", u.tuning.sod.adaptive_time_constant_s},
           {"process_noise_scale", u.tuning.sod.process_noise_scale},
           {"drag_density_error", u.tuning.sod.drag_density_error},
           {"nis_window", u.tuning.sod.nis_window},
@@ -325,6 +326,9 @@ ObserverUplink read_uplink(const std::string& path) {
     if (average == "clamped") u.tuning.sod.adaptive_average = SodTuning::AdaptiveAverage::kClamped;
     else if (average == "unclamped") u.tuning.sod.adaptive_average = SodTuning::AdaptiveAverage::kUnclamped;
     else throw std::runtime_error(path + ": tuning.sod.adaptive_average must be clamped or unclamped, got " + average);
+    u.tuning.sod.adaptive_time_constant_s = sod.value("adaptive_time_constant_s", 1170.0);  // older uplinks: the default
+    if (!(u.tuning.sod.adaptive_time_constant_s > 0.0 && u.tuning.sod.adaptive_time_constant_s <= 30.0 * 86400.0))
+      throw std::runtime_error(path + ": tuning.sod.adaptive_time_constant_s must be in (0, 2592000]");
     u.tuning.sod.process_noise_scale = sod.at("process_noise_scale").get<double>();
     u.tuning.sod.drag_density_error = sod.value("drag_density_error", 0.0);  // older uplinks: off
     if (!(u.tuning.sod.drag_density_error >= 0.0 && u.tuning.sod.drag_density_error <= 10.0))

@@ -552,6 +552,16 @@ TEST(ScenarioLoad, DragDensityErrorIsOffByDefaultAndNamedWhenOutOfRange) {
   expect_one("drag_floor_text.yaml", kValid + "tuning:\n  sod: {drag_density_error: high}\n", 13,
              "tuning.sod.drag_density_error", "expected a number");
 }
+TEST(ScenarioLoad, AdaptiveTimeConstantIsADurationNamedWhenOutOfRange) {
+  EXPECT_EQ(load_scenario(write_file("tau_default.yaml", kValid)).tuning.sod.adaptive_time_constant_s, 1170.0);
+  const Scenario s =
+      load_scenario(write_file("tau.yaml", kValid + "tuning:\n  sod: {adaptive_time_constant: 3h}\n"));
+  EXPECT_DOUBLE_EQ(s.tuning.sod.adaptive_time_constant_s, 3.0 * 3600.0);
+  expect_one("tau_zero.yaml", kValid + "tuning:\n  sod: {adaptive_time_constant: 0s}\n", 13,
+             "tuning.sod.adaptive_time_constant", "> 0 s");
+  expect_one("tau_long.yaml", kValid + "tuning:\n  sod: {adaptive_time_constant: 40d}\n", 13,
+             "tuning.sod.adaptive_time_constant", "at most 30 days");
+}
 TEST(ScenarioLoad, SenderClocksAreOffByDefaultAndNamedWhenWrong) {
   EXPECT_FALSE(load_scenario(write_file("senders_default.yaml", kValid)).tuning.sod.time_tag_senders);
   const Scenario s = load_scenario(

@@ -139,6 +139,20 @@ TEST(Uplink, DragDensityErrorRoundTripsAndOlderUplinksLeaveItOff) {
   EXPECT_THROW((void)read_uplink(path), std::runtime_error);
 }
 
+TEST(Uplink, AdaptiveTimeConstantRoundTripsAndOlderUplinksKeepTheDefault) {
+  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
+  ObserverUplink u = make_uplink(s, "SV4");
+  u.tuning.sod.adaptive_time_constant_s = 600.0;
+  const std::string path = ::testing::TempDir() + "/uplink_sv4_tau.json";
+  write_uplink(u, path);
+  EXPECT_DOUBLE_EQ(read_uplink(path).tuning.sod.adaptive_time_constant_s, 600.0);
+  ASSERT_TRUE(replace_in_file(path, "\"adaptive_time_constant_s\"", "\"adaptive_time_constant_gone\""));
+  EXPECT_EQ(read_uplink(path).tuning.sod.adaptive_time_constant_s, 1170.0);
+  write_uplink(u, path);
+  ASSERT_TRUE(replace_in_file(path, "\"adaptive_time_constant_s\": 600.0", "\"adaptive_time_constant_s\": -1.0"));
+  EXPECT_THROW((void)read_uplink(path), std::runtime_error);
+}
+
 TEST(Uplink, SenderClocksRoundTripAndOlderUplinksLeaveThemOff) {
   const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
   ObserverUplink u = make_uplink(s, "SV4");

@@ -102,6 +102,7 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
                            : sod::AdaptiveNoiseAverage::kClamped;
   o.q_target_a_roe_m2ps *= t.process_noise_scale;
   o.adaptive.drag_density_error = t.drag_density_error;
+  o.adaptive.time_constant_s = t.adaptive_time_constant_s;
   o.health.nis_window = t.nis_window;
   if (t.nis_window > 0) o.health.nis_max_mean = sod::chi2_quantile(2 * t.nis_window, 1.0 - t.nis_false_alarm) / t.nis_window;
   o.health.gnss_nis_window = t.nis_window > 0 ? 10 : 0;

@@ -76,8 +76,8 @@ void SodOptions::validate() const {
   require(health.gnss_bias_window >= 0, "health.gnss_bias_window", "must be >= 0 (0 disables)");
   require(std::isfinite(health.gnss_bias_max) && health.gnss_bias_max > 0.0, "health.gnss_bias_max",
           "must be finite and > 0");
-  require(adaptive.forgetting > 0.0 && adaptive.forgetting < 1.0, "adaptive.forgetting",
-          "must be in (0, 1)");
+  require(std::isfinite(adaptive.time_constant_s) && adaptive.time_constant_s > 0.0, "adaptive.time_constant_s",
+          "must be finite and > 0");
   require(std::isfinite(adaptive.floor_factor) && adaptive.floor_factor >= 0.0 &&
               adaptive.floor_factor <= 1.0,
           "adaptive.floor_factor", "must be in [0, 1]");
@@ -270,7 +270,7 @@ void SodFilter::initialize(TimeTT t, const VectorXd& x, const MatrixXd& P) {
   Q_average_ = Q_rate_;
   pending_dxdx_ = MatrixXd::Zero(n, n);
   pending_ = false;
-  last_dt_s_ = 0.0;
+  pending_dt_s_ = 0.0;
   counters_.assign(layout_.n_targets, {});
   bod_status_.assign(layout_.n_targets, {});
   last_bod_.assign(layout_.n_targets, std::nullopt);
@@ -316,14 +316,17 @@ bool SodFilter::sigma_points(MatrixXd& X) const {
 }
 
 void SodFilter::adapt_process_noise() {
-  if (!options_.adaptive.enabled || !pending_ || !(last_dt_s_ > 0.0)) {
+  if (!options_.adaptive.enabled || !pending_) {
     pending_dxdx_.setZero();
     pending_ = false;
     return;
   }
-  // docs/sod.md, "Adaptive process noise".
+  // docs/sod.md, "Adaptive process noise": the corrections weigh 1/tau
+  // whatever the interval, the memory decays over the time they span.
   const AdaptiveNoiseOptions& o = options_.adaptive;
-  const double alpha = o.forgetting, floor = o.floor_factor, ceiling = o.ceiling_factor;
+  const double tau = o.time_constant_s, keep = std::exp(-pending_dt_s_ / tau);
+  const double floor = o.floor_factor, ceiling = o.ceiling_factor;
+  pending_dt_s_ = 0.0;
   const bool unclamped = o.average == AdaptiveNoiseAverage::kUnclamped;
   const int n = layout_.size();
   // The drag floor of each target (docs/sod.md, "The drag floor"), in the nominal's units.
@@ -352,8 +355,8 @@ void SodFilter::adapt_process_noise() {
       const Vec6 s = nominal.cwiseSqrt(), s_inv = s.cwiseInverse();
       const Mat6 Q_prev = Q_rate_.block<6, 6>(off, off);
       const Mat6 A_prev = unclamped ? Mat6(Q_average_.block<6, 6>(off, off)) : Q_prev;
-      const Mat6 Q_hat = Q_prev + pending_dxdx_.block<6, 6>(off, off) / last_dt_s_;
-      Mat6 M = s_inv.asDiagonal() * (alpha * A_prev + (1.0 - alpha) * Q_hat) * s_inv.asDiagonal();
+      const Mat6 A = keep * A_prev + (1.0 - keep) * Q_prev + pending_dxdx_.block<6, 6>(off, off) / tau;
+      Mat6 M = s_inv.asDiagonal() * A * s_inv.asDiagonal();
       M = 0.5 * (M + M.transpose());
       const Eigen::SelfAdjointEigenSolver<Mat6> eig(M);
       if (eig.info() != Eigen::Success || !eig.eigenvalues().allFinite()) continue;
@@ -383,8 +386,7 @@ void SodFilter::adapt_process_noise() {
   for (int i = 0; i < n; ++i) {
     if (in_block[i]) continue;
     const double a_prev = unclamped ? Q_average_(i, i) : Q_rate_(i, i);
-    const double q_hat = Q_rate_(i, i) + pending_dxdx_(i, i) / last_dt_s_;
-    const double a = alpha * a_prev + (1.0 - alpha) * q_hat;
+    const double a = keep * a_prev + (1.0 - keep) * Q_rate_(i, i) + pending_dxdx_(i, i) / tau;
     const double lo = floor * q_nominal_[i] + floor_add[i];
     Q_rate_(i, i) = std::clamp(a, lo, std::max(lo, ceiling * q_nominal_[i]));
     Q_average_(i, i) = unclamped ? std::clamp(a, -ceiling * q_nominal_[i], ceiling * q_nominal_[i]) : Q_rate_(i, i);
@@ -525,7 +527,7 @@ void SodFilter::finish_time_update(TimeTT t, const VectorXd& mean, MatrixXd P, T
     return;
   }
   t_ = t;
-  last_dt_s_ = std::abs(s.dt_s);
+  pending_dt_s_ += std::abs(s.dt_s);
   ++steps_without_update_;
   for (auto& c : counters_) ++c.steps_without_update;
   s.usable = true;

@@ -53,7 +53,7 @@ TEST(SodOptions, DefaultsAreValidAndErrorsNameTheField) {
   expect_invalid([](SodOptions& o) { o.propagator.step_s = 0.0; }, "propagator.step_s");
   expect_invalid([](SodOptions& o) { o.q_observer[3] = -1.0; }, "q_observer[3]");
   expect_invalid([](SodOptions& o) { o.q_target_a_roe_m2ps[1] = kNaN; }, "q_target_a_roe_m2ps[1]");
-  expect_invalid([](SodOptions& o) { o.adaptive.forgetting = 1.0; }, "adaptive.forgetting");
+  expect_invalid([](SodOptions& o) { o.adaptive.time_constant_s = 0.0; }, "adaptive.time_constant_s");
   expect_invalid([](SodOptions& o) { o.adaptive.ceiling_factor = 0.5; }, "adaptive.ceiling_factor");
   expect_invalid([](SodOptions& o) { o.bearing_gate_mahalanobis = 0.0; }, "bearing_gate_mahalanobis");
   expect_invalid([](SodOptions& o) { o.health.max_steps_without_update = 0; },
@@ -431,7 +431,7 @@ void drive_large_corrections(Fixture& f, bool time_updates) {
 // The adaptive estimate stays inside [floor, ceiling] x nominal.
 TEST(SodAdaptiveNoise, ClampedBetweenFloorAndCeiling) {
   SodOptions o;
-  o.adaptive.forgetting = 0.5;
+  o.adaptive.time_constant_s = 87.0;  // e^(-60/87) = 0.5 per 60 s
   o.bearing_gate_mahalanobis = kInf;
   Fixture f(o, 0.05, 100.0);
   const VectorXd q0 = f.filter.process_noise_rate();
@@ -447,6 +447,36 @@ TEST(SodAdaptiveNoise, ClampedBetweenFloorAndCeiling) {
   EXPECT_GT(q[dl], q0[dl]);
 }
 
+// The adaptation is an average in time (docs/sod.md, "Adaptive process
+// noise"): the same bearings give the same rate whether the 60 s before each
+// is one time update or two (59.5 s and 0.5 s, as a navigator that predicts
+// to an image time first does). Divided by the last interval, the 0.5 s step
+// made the rate 120 times larger.
+TEST(SodAdaptiveNoise, RateDoesNotDependOnHowTimeUpdatesSplitTheInterval) {
+  SodOptions o;
+  o.adaptive.floor_factor = 0.0;
+  o.adaptive.ceiling_factor = 1e12;  // no clamp: the estimate itself is compared
+  o.bearing_gate_mahalanobis = kInf;
+  Fixture one(o), two(o);
+  const VectorXd q0 = one.filter.process_noise_rate();
+  for (int s = 1; s <= 10; ++s) {
+    const TimeTT t = kT0.plus_seconds(60.0 * s);
+    ASSERT_TRUE(two.filter.time_update(t.plus_seconds(-0.5)).usable);
+    for (Fixture* f : {&one, &two}) {
+      f->truth.advance_to(t);
+      BearingMeasurement m = f->truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
+      m.angles.az_rad += (s % 2 ? 1 : -1) * 2e-3;
+      ASSERT_TRUE(f->filter.update_bearing(m).usable);
+    }
+  }
+  for (Fixture* f : {&one, &two}) ASSERT_TRUE(f->filter.time_update(kT0.plus_seconds(60.0 * 11)).usable);
+  const VectorXd& q1 = one.filter.process_noise_rate();
+  const VectorXd& q2 = two.filter.process_noise_rate();
+  const int dl = one.filter.layout().target_offset(0) + StateLayout::kDlambda;
+  EXPECT_GT(q1[dl], 10.0 * q0[dl]);  // the corrections raised it
+  for (int i = 0; i < q1.size(); ++i) EXPECT_NEAR(q2[i], q1[i], 1e-3 * q1.cwiseQuotient(q0).maxCoeff() * q0[i]) << i;
+}
+
 // Block form (docs/sod.md): each spacecraft's 6x6 rate is symmetric, couples
 // its components, and stays within [floor, ceiling] x the nominal in the
 // Loewner order (eigenvalues of N^-1/2 Q N^-1/2), with either average.
@@ -455,7 +485,7 @@ TEST(SodAdaptiveNoise, BlockFormStaysBetweenFloorAndCeilingInTheLoewnerOrder) {
     SodOptions o;
     o.adaptive.form = AdaptiveNoiseForm::kBlock;
     o.adaptive.average = average;
-    o.adaptive.forgetting = 0.5;
+    o.adaptive.time_constant_s = 87.0;  // e^(-60/87) = 0.5 per 60 s
     o.bearing_gate_mahalanobis = kInf;
     Fixture f(o, 0.05, 100.0);
     const VectorXd q0 = f.filter.process_noise_rate();

@@ -202,6 +202,8 @@ struct SodTuning {
   enum class AdaptiveAverage { kClamped, kUnclamped };
   AdaptiveForm adaptive_form = AdaptiveForm::kDiagonal;
   AdaptiveAverage adaptive_average = AdaptiveAverage::kClamped;
+  // The adaptation's memory, s (sod::AdaptiveNoiseOptions::time_constant_s).
+  double adaptive_time_constant_s = 1170.0;
   double process_noise_scale = 1.0;   // times the nominal target process noise
   // The onboard density's expected relative error along the orbit: with the
   // ballistic states on, the differential drag it leaves unmodelled is the

@@ -40,9 +40,10 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Adaptive process noise (Sullivan, Koenig & D'Amico 2017; Stacey & D'Amico
-// 2018), covariance matching on the state correction dx = K nu:
-//   Q^  = Q_{k-1} + sum (dx dx^T - K S K^T) / dt_{k-1}
-//   A_k = alpha A_{k-1} + (1 - alpha) Q^,   Q_k = A_k clamped
+// 2018), covariance matching on the state correction dx = K nu, as an
+// exponential average of time constant tau over the time D the corrections
+// C = sum (dx dx^T - K S K^T) were gathered in:
+//   A_k = e^(-D/tau) A_{k-1} + (1 - e^(-D/tau)) Q_{k-1} + C / tau,   Q_k = A_k clamped
 // to [floor_factor, ceiling_factor] x the nominal (docs/sod.md, "Adaptive
 // process noise"). The form says which entries adapt; the average whether
 // the recursion runs on the clamped Q (A = Q) or on its own unclamped A.
@@ -58,7 +59,9 @@ struct AdaptiveNoiseOptions {
   bool enabled = true;
   AdaptiveNoiseForm form = AdaptiveNoiseForm::kDiagonal;
   AdaptiveNoiseAverage average = AdaptiveNoiseAverage::kClamped;
-  double forgetting = 0.95;  // alpha, in (0, 1)
+  // tau, s: e^(-60/tau) = 0.95, the paper-era per-step forgetting 0.95 at
+  // the scenarios' 60 s cadence, whatever interval the updates split it into.
+  double time_constant_s = 1170.0;
   double floor_factor = 0.1;
   double ceiling_factor = 100.0;
   // The onboard density's expected relative error along the orbit (0: off).
@@ -475,7 +478,7 @@ class SodFilter {
   MatrixXd Q_average_;      // the adaptive recursion's A (= Q_rate_ with the clamped average)
   MatrixXd pending_dxdx_;   // sum of dx dx^T - K S K^T since the last time update
   bool pending_ = false;
-  double last_dt_s_ = 0.0;
+  double pending_dt_s_ = 0.0;  // time propagated since the last adaptation
   bool initialized_ = false;
 
   const dynamics::ForceModel& forces_;
