@@ -347,7 +347,7 @@ int run(int argc, char** argv) {
   std::optional<double> drag_density_error, adaptive_time_constant_s;
   app.add_option("--adaptive-time-constant-s", adaptive_time_constant_s,
                  "override tuning.sod.adaptive_time_constant (s)")
-      ->check(CLI::Range(1.0, 30.0 * 86400.0));
+      ->check(CLI::Range(0.0, 30.0 * 86400.0));
   app.add_option("--drag-density-error", drag_density_error, "override tuning.sod.drag_density_error")
       ->check(CLI::Range(0.0, 10.0));
   std::string target_lines;
@@ -389,6 +389,8 @@ int run(int argc, char** argv) {
   tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
   tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
   tuning.drag_density_error = drag_density_error.value_or(tuning.drag_density_error);
+  if (adaptive_time_constant_s && !(*adaptive_time_constant_s > 0.0))
+    throw std::runtime_error("--adaptive-time-constant-s must be > 0 s (and at most 30 days), got 0");
   tuning.adaptive_time_constant_s = adaptive_time_constant_s.value_or(tuning.adaptive_time_constant_s);
   if (!adaptive_form.empty())
     tuning.adaptive_form = adaptive_form == "block" ? config::SodTuning::AdaptiveForm::kBlock

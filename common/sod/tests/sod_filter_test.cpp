@@ -431,7 +431,7 @@ void drive_large_corrections(Fixture& f, bool time_updates) {
 // The adaptive estimate stays inside [floor, ceiling] x nominal.
 TEST(SodAdaptiveNoise, ClampedBetweenFloorAndCeiling) {
   SodOptions o;
-  o.adaptive.time_constant_s = 87.0;  // e^(-60/87) = 0.5 per 60 s
+  o.adaptive.time_constant_s = 87.0;  // a gain of 1/87 s per correction: fast, as the old forgetting 0.5 was
   o.bearing_gate_mahalanobis = kInf;
   Fixture f(o, 0.05, 100.0);
   const VectorXd q0 = f.filter.process_noise_rate();
@@ -447,34 +447,48 @@ TEST(SodAdaptiveNoise, ClampedBetweenFloorAndCeiling) {
   EXPECT_GT(q[dl], q0[dl]);
 }
 
-// The adaptation is an average in time (docs/sod.md, "Adaptive process
-// noise"): the same bearings give the same rate whether the 60 s before each
-// is one time update or two (59.5 s and 0.5 s, as a navigator that predicts
-// to an image time first does). Divided by the last interval, the 0.5 s step
-// made the rate 120 times larger.
+// The adaptation runs in time (docs/sod.md, "Adaptive process noise"): the
+// same bearings give the same rate whether the 60 s before each is one time
+// update or two (59.5 s and 0.5 s, as a navigator that predicts to an image
+// time first does). Diagonal without a clamp: the corrections' gain 1/tau
+// (divided by the last interval, the 0.5 s step made the rate 120 times
+// larger). Block with the unclamped average and the default clamp: the
+// average outside [floor, ceiling] relaxes towards the rate over the whole
+// 60 s, however it was split.
 TEST(SodAdaptiveNoise, RateDoesNotDependOnHowTimeUpdatesSplitTheInterval) {
-  SodOptions o;
-  o.adaptive.floor_factor = 0.0;
-  o.adaptive.ceiling_factor = 1e12;  // no clamp: the estimate itself is compared
-  o.bearing_gate_mahalanobis = kInf;
-  Fixture one(o), two(o);
-  const VectorXd q0 = one.filter.process_noise_rate();
-  for (int s = 1; s <= 10; ++s) {
-    const TimeTT t = kT0.plus_seconds(60.0 * s);
-    ASSERT_TRUE(two.filter.time_update(t.plus_seconds(-0.5)).usable);
-    for (Fixture* f : {&one, &two}) {
-      f->truth.advance_to(t);
-      BearingMeasurement m = f->truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
-      m.angles.az_rad += (s % 2 ? 1 : -1) * 2e-3;
-      ASSERT_TRUE(f->filter.update_bearing(m).usable);
+  for (const bool block : {false, true}) {
+    SodOptions o;
+    if (block) {
+      o.adaptive.form = AdaptiveNoiseForm::kBlock;
+      o.adaptive.average = AdaptiveNoiseAverage::kUnclamped;
+    } else {
+      o.adaptive.floor_factor = 0.0;
+      o.adaptive.ceiling_factor = 1e12;  // no clamp: the estimate itself is compared
     }
+    o.bearing_gate_mahalanobis = kInf;
+    Fixture one(o), two(o);
+    const VectorXd q0 = one.filter.process_noise_rate();
+    for (int s = 1; s <= 10; ++s) {
+      const TimeTT t = kT0.plus_seconds(60.0 * s);
+      ASSERT_TRUE(two.filter.time_update(t.plus_seconds(-0.5)).usable);
+      for (Fixture* f : {&one, &two}) {
+        f->truth.advance_to(t);
+        BearingMeasurement m = f->truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
+        m.angles.az_rad += (s % 2 ? 1 : -1) * 2e-3;
+        ASSERT_TRUE(f->filter.update_bearing(m).usable);
+      }
+    }
+    for (Fixture* f : {&one, &two}) ASSERT_TRUE(f->filter.time_update(kT0.plus_seconds(60.0 * 11)).usable);
+    // In the nominal's units, N^-1/2 Q N^-1/2.
+    const VectorXd s_inv = q0.cwiseSqrt().cwiseInverse();
+    const MatrixXd Q1 = s_inv.asDiagonal() * one.filter.process_noise_rate_matrix() * s_inv.asDiagonal();
+    const MatrixXd Q2 = s_inv.asDiagonal() * two.filter.process_noise_rate_matrix() * s_inv.asDiagonal();
+    const int dl = one.filter.layout().target_offset(0) + StateLayout::kDlambda;
+    EXPECT_GT(Q1(dl, dl), 5.0) << block;  // the corrections raised it
+    for (int i = 0; i < Q1.rows(); ++i)
+      for (int j = 0; j < Q1.cols(); ++j)
+        EXPECT_NEAR(Q2(i, j), Q1(i, j), 1e-3 * std::max(1.0, std::abs(Q1(i, j)))) << block << " " << i << " " << j;
   }
-  for (Fixture* f : {&one, &two}) ASSERT_TRUE(f->filter.time_update(kT0.plus_seconds(60.0 * 11)).usable);
-  const VectorXd& q1 = one.filter.process_noise_rate();
-  const VectorXd& q2 = two.filter.process_noise_rate();
-  const int dl = one.filter.layout().target_offset(0) + StateLayout::kDlambda;
-  EXPECT_GT(q1[dl], 10.0 * q0[dl]);  // the corrections raised it
-  for (int i = 0; i < q1.size(); ++i) EXPECT_NEAR(q2[i], q1[i], 1e-3 * q1.cwiseQuotient(q0).maxCoeff() * q0[i]) << i;
 }
 
 // Block form (docs/sod.md): each spacecraft's 6x6 rate is symmetric, couples
@@ -485,7 +499,7 @@ TEST(SodAdaptiveNoise, BlockFormStaysBetweenFloorAndCeilingInTheLoewnerOrder) {
     SodOptions o;
     o.adaptive.form = AdaptiveNoiseForm::kBlock;
     o.adaptive.average = average;
-    o.adaptive.time_constant_s = 87.0;  // e^(-60/87) = 0.5 per 60 s
+    o.adaptive.time_constant_s = 87.0;  // a gain of 1/87 s per correction: fast, as the old forgetting 0.5 was
     o.bearing_gate_mahalanobis = kInf;
     Fixture f(o, 0.05, 100.0);
     const VectorXd q0 = f.filter.process_noise_rate();
