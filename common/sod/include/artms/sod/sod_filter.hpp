@@ -40,10 +40,11 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Adaptive process noise (Sullivan, Koenig & D'Amico 2017; Stacey & D'Amico
-// 2018), covariance matching on the state correction dx = K nu, as an
-// exponential average of time constant tau over the time D the corrections
-// C = sum (dx dx^T - K S K^T) were gathered in:
-//   A_k = e^(-D/tau) A_{k-1} + (1 - e^(-D/tau)) Q_{k-1} + C / tau,   Q_k = A_k clamped
+// 2018), covariance matching on the state correction dx = K nu, in time:
+// the corrections C = sum (dx dx^T - K S K^T) weigh 1/tau, and an average
+// outside the clamp relaxes towards the rate applied over the time h noise
+// was added since the last adaptation:
+//   A_k = e^(-h/tau) A_{k-1} + (1 - e^(-h/tau)) Q_{k-1} + C / tau,   Q_k = A_k clamped
 // to [floor_factor, ceiling_factor] x the nominal (docs/sod.md, "Adaptive
 // process noise"). The form says which entries adapt; the average whether
 // the recursion runs on the clamped Q (A = Q) or on its own unclamped A.
@@ -59,8 +60,9 @@ struct AdaptiveNoiseOptions {
   bool enabled = true;
   AdaptiveNoiseForm form = AdaptiveNoiseForm::kDiagonal;
   AdaptiveNoiseAverage average = AdaptiveNoiseAverage::kClamped;
-  // tau, s: e^(-60/tau) = 0.95, the paper-era per-step forgetting 0.95 at
-  // the scenarios' 60 s cadence, whatever interval the updates split it into.
+  // tau, s: the corrections' gain 1/tau; e^(-60/tau) = 0.95, the former
+  // per-step forgetting at the scenarios' 60 s cadence, however the time
+  // updates split it.
   double time_constant_s = 1170.0;
   double floor_factor = 0.1;
   double ceiling_factor = 100.0;
