@@ -347,7 +347,7 @@ int run(int argc, char** argv) {
   std::optional<double> drag_density_error, adaptive_time_constant_s;
   app.add_option("--adaptive-time-constant-s", adaptive_time_constant_s,
                  "override tuning.sod.adaptive_time_constant (s)")
-      ->check(CLI::Range(0.0, 30.0 * 86400.0));
+      ->check(CLI::Range(0.0, config::SodTuning::kMaxAdaptiveTimeConstantS));
   app.add_option("--drag-density-error", drag_density_error, "override tuning.sod.drag_density_error")
       ->check(CLI::Range(0.0, 10.0));
   std::string target_lines;

@@ -1418,7 +1418,7 @@ class Parser {
                     t.sod.adaptive_average);
         }
         if (duration_field(ctx_, sm, "adaptive_time_constant", t.sod.adaptive_time_constant_s, false) &&
-            t.sod.adaptive_time_constant_s > 30.0 * 86400.0) {
+            t.sod.adaptive_time_constant_s > SodTuning::kMaxAdaptiveTimeConstantS) {
           ctx_.error(*sm.find("adaptive_time_constant"),
                      "out of range: expected at most 30 days, got " + fmt_num(t.sod.adaptive_time_constant_s) + " s");
         }

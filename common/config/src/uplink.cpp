@@ -328,7 +328,8 @@ ObserverUplink read_uplink(const std::string& path) {
     else throw std::runtime_error(path + ": tuning.sod.adaptive_average must be clamped or unclamped, got " + average);
     u.tuning.sod.adaptive_time_constant_s =
         sod.value("adaptive_time_constant_s", SodTuning{}.adaptive_time_constant_s);  // older uplinks: the default
-    if (!(u.tuning.sod.adaptive_time_constant_s > 0.0 && u.tuning.sod.adaptive_time_constant_s <= 30.0 * 86400.0))
+    if (!(u.tuning.sod.adaptive_time_constant_s > 0.0 &&
+          u.tuning.sod.adaptive_time_constant_s <= SodTuning::kMaxAdaptiveTimeConstantS))
       throw std::runtime_error(path + ": tuning.sod.adaptive_time_constant_s must be in (0, 2592000]");
     u.tuning.sod.process_noise_scale = sod.at("process_noise_scale").get<double>();
     u.tuning.sod.drag_density_error = sod.value("drag_density_error", 0.0);  // older uplinks: off

@@ -124,33 +124,32 @@ TEST(Uplink, AdaptiveFormAndAverageRoundTrip) {
   EXPECT_THROW((void)read_uplink(path), std::runtime_error);
 }
 
-TEST(Uplink, DragDensityErrorRoundTripsAndOlderUplinksLeaveItOff) {
+// A number of tuning.sod: written and read back; an older uplink without
+// its key reads as `older`; a negative value is refused. `text` is how
+// write_uplink prints `value`.
+void expect_sod_number_round_trips(double SodTuning::*field, const std::string& key, double value,
+                                   const std::string& text, double older, const std::string& file) {
   const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
   ObserverUplink u = make_uplink(s, "SV4");
-  u.tuning.sod.drag_density_error = 0.3;
-  const std::string path = ::testing::TempDir() + "/uplink_sv4_drag_floor.json";
+  u.tuning.sod.*field = value;
+  const std::string path = ::testing::TempDir() + "/" + file;
   write_uplink(u, path);
-  EXPECT_DOUBLE_EQ(read_uplink(path).tuning.sod.drag_density_error, 0.3);
-  ASSERT_TRUE(replace_in_file(path, "\"drag_density_error\"", "\"drag_density_error_gone\""));
-  EXPECT_EQ(read_uplink(path).tuning.sod.drag_density_error, 0.0);
-  u.tuning.sod.drag_density_error = 0.3;
+  EXPECT_DOUBLE_EQ(read_uplink(path).tuning.sod.*field, value);
+  ASSERT_TRUE(replace_in_file(path, "\"" + key + "\"", "\"" + key + "_gone\""));
+  EXPECT_EQ(read_uplink(path).tuning.sod.*field, older);
   write_uplink(u, path);
-  ASSERT_TRUE(replace_in_file(path, "\"drag_density_error\": 0.3", "\"drag_density_error\": -1.0"));
+  ASSERT_TRUE(replace_in_file(path, "\"" + key + "\": " + text, "\"" + key + "\": -1.0"));
   EXPECT_THROW((void)read_uplink(path), std::runtime_error);
 }
 
+TEST(Uplink, DragDensityErrorRoundTripsAndOlderUplinksLeaveItOff) {
+  expect_sod_number_round_trips(&SodTuning::drag_density_error, "drag_density_error", 0.3, "0.3", 0.0,
+                                "uplink_sv4_drag_floor.json");
+}
+
 TEST(Uplink, AdaptiveTimeConstantRoundTripsAndOlderUplinksKeepTheDefault) {
-  const Scenario s = load_scenario(std::string(ARTMS_SCENARIO_DIR) + "/starling_pse.yaml");
-  ObserverUplink u = make_uplink(s, "SV4");
-  u.tuning.sod.adaptive_time_constant_s = 600.0;
-  const std::string path = ::testing::TempDir() + "/uplink_sv4_tau.json";
-  write_uplink(u, path);
-  EXPECT_DOUBLE_EQ(read_uplink(path).tuning.sod.adaptive_time_constant_s, 600.0);
-  ASSERT_TRUE(replace_in_file(path, "\"adaptive_time_constant_s\"", "\"adaptive_time_constant_gone\""));
-  EXPECT_EQ(read_uplink(path).tuning.sod.adaptive_time_constant_s, 1170.0);
-  write_uplink(u, path);
-  ASSERT_TRUE(replace_in_file(path, "\"adaptive_time_constant_s\": 600.0", "\"adaptive_time_constant_s\": -1.0"));
-  EXPECT_THROW((void)read_uplink(path), std::runtime_error);
+  expect_sod_number_round_trips(&SodTuning::adaptive_time_constant_s, "adaptive_time_constant_s", 600.0, "600.0",
+                                1170.0, "uplink_sv4_tau.json");
 }
 
 TEST(Uplink, SenderClocksRoundTripAndOlderUplinksLeaveThemOff) {

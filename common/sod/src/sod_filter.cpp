@@ -322,7 +322,8 @@ void SodFilter::adapt_process_noise() {
     return;
   }
   // docs/sod.md, "Adaptive process noise": the corrections weigh 1/tau
-  // whatever the interval, the memory decays over the time they span.
+  // whatever the interval; an unclamped average outside the clamp relaxes
+  // towards the rate over the time they span.
   const AdaptiveNoiseOptions& o = options_.adaptive;
   const double tau = o.time_constant_s, keep = std::exp(-pending_dt_s_ / tau);
   const double floor = o.floor_factor, ceiling = o.ceiling_factor;

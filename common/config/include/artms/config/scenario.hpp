@@ -202,7 +202,9 @@ struct SodTuning {
   enum class AdaptiveAverage { kClamped, kUnclamped };
   AdaptiveForm adaptive_form = AdaptiveForm::kDiagonal;
   AdaptiveAverage adaptive_average = AdaptiveAverage::kClamped;
-  // The adaptation's memory, s (sod::AdaptiveNoiseOptions::time_constant_s).
+  // The adaptation's time constant, s (sod::AdaptiveNoiseOptions::time_constant_s),
+  // in (0, kMaxAdaptiveTimeConstantS].
+  static constexpr double kMaxAdaptiveTimeConstantS = 30.0 * 86400.0;
   double adaptive_time_constant_s = 1170.0;
   double process_noise_scale = 1.0;   // times the nominal target process noise
   // The onboard density's expected relative error along the orbit: with the
