@@ -5,7 +5,8 @@
 # spans of the three scenarios the acceptance names: PSE (mode 1, one
 # observer), IT multi (mode 3, three observers, ISL) and the four-observer
 # soak scenario; and the PSE BOD scenario (mode 2: SOD initialised by BOD).
-# The PSE spans hold BOD attempts (every 90 min), so bod/ is compared too;
+# And the flight-like PSE with --epoch-window 24h (the run's epoch drawn
+# from the seed). The PSE spans hold BOD attempts (every 90 min), so bod/ is compared too;
 # a span without any attempt fails (bod/<observer>.csv header only).
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
@@ -39,4 +40,17 @@ run pse_bod starling_pse_bod.yaml --duration 5h
 bod_rows pse_bod SV2
 run it_multi starling_it_multi.yaml --duration 2h
 run soak soak_four_observers.yaml --duration 1h
+# The epoch drawn from the seed within a window (campaigns of independent
+# worlds): every process draws the same one, DDS and in-process alike.
+run pse_window starling_pse_flight.yaml --duration 1h --epoch-window 24h
+/usr/bin/python3 - "$WORK/pse_window-dds" <<'PY'
+import json, sys
+d = sys.argv[1]
+e = json.load(open(f"{d}/summary.json"))["epoch"]
+assert e["window_s"] == 86400.0 and 0 < e["offset_s"] < 86400.0, e
+assert e["nominal_utc"] == "2024-05-08T00:00:00.000Z" and e["utc"] != e["nominal_utc"], e
+start = next(l.split("=")[1].strip() for l in open(f"{d}/truth.oem") if l.startswith("START_TIME"))
+assert start.startswith(e["utc"][:19]), (start, e)
+print(f"  pse_window: epoch drawn {e['utc']} ({e['offset_s']:.0f} s after the scenario's), the truth's OEM starts there")
+PY
 echo "swarm in-process: ok"

@@ -42,13 +42,20 @@ int run(int argc, char** argv) {
   app.add_option("--profile", profile, "target photometry: nominal | flight-like (default: the scenario's)");
   app.add_option("--camera", camera_path, "camera YAML (default config/cameras/<model>.yaml)");
   app.add_flag("--noise-free", noise_free, "no noise, no faint stars: the expected signal (for geometry checks)");
+  std::uint64_t seed = 0;
+  std::string epoch_window;
+  auto* seed_opt = app.add_option("--seed", seed, "random seed (overrides the scenario's, as artms-swarm run --seed)");
+  app.add_option("--epoch-window", epoch_window,
+                 "overrides the scenario's epoch_window (the run's epoch drawn from the seed, as artms-swarm run)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
   try {
-    const config::Scenario sc = config::load_scenario(scenario_path);
+    config::Scenario sc = config::load_scenario(scenario_path);
+    if (!epoch_window.empty()) config::set_epoch_window(sc, io::parse_duration_s(epoch_window));
+    if (seed_opt->count() > 0) config::set_seed(sc, seed);
     const double every_s = io::parse_duration_s(every);
     if (!(every_s > 0.0)) throw std::invalid_argument("--every must be positive");
     const astro::TimeTT t0 = start.empty() ? sc.epoch : astro::tt_from_utc_string(start);

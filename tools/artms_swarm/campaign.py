@@ -3,11 +3,15 @@
 
 usage: campaign.py SCENARIO.yaml --seeds N (--orbits X | --duration 6h) --out DIR
                    [--first-seed 1] [--jobs J] [--in-process | --dds] [--bin build/bin] [--rerun]
-                   [--from-orbit X] [--init-within-orbits X]
+                   [--from-orbit X] [--init-within-orbits X] [--epoch-window D]
                    [--dask-local N | --dask-scheduler tcp://HOST:PORT]
 
 Each seed s is `artms-swarm run SCENARIO --seed s (--orbits X | --duration D) --out DIR/seed_<s>`
-(with --in-process by default; --dds runs the multi-process DDS swarm). --jobs
+(with --in-process by default; --dds runs the multi-process DDS swarm; with
+--epoch-window D each seed also draws its epoch within D after the
+scenario's, so that the seeds fly over different parts of the world and the
+NEES band compares independent worlds; the seeds are compared at the same
+time since their own epoch). --jobs
 seeds run at a time on this machine, or each seed is one task of a Dask
 cluster: --dask-local N starts a LocalCluster of N single-thread workers on
 127.0.0.1 (no dashboard), --dask-scheduler submits to a running scheduler
@@ -185,6 +189,9 @@ def parse_args(argv):
                          "(mode 2: BOD's autonomous initialisation; default: at any time)")
     ap.add_argument("--from-orbit", type=float, metavar="X",
                     help="also report the fraction of steps inside the band from orbit X on")
+    ap.add_argument("--epoch-window", metavar="D",
+                    help="each seed draws its epoch within D after the scenario's (artms-swarm run --epoch-window; "
+                         "24h: each seed over its own part of the geopotential, the Sun where it was)")
     dask = ap.add_mutually_exclusive_group()
     dask.add_argument("--dask-local", type=int, metavar="N",
                       help="run the seeds on a Dask LocalCluster of N workers bound to 127.0.0.1")
@@ -223,12 +230,15 @@ def reuse_verdict(seed_dir, record):
         return False, f"{RECORD} unreadable ({e})"
     if old != record:
         what = {"scenario_sha256": "the scenario file changed", "span": "another span", "seed": "another seed",
-                "mode": "another run mode"}
+                "mode": "another run mode", "epoch_window_s": "another epoch window"}
         keys = sorted(set(old) | set(record) if isinstance(old, dict) else set(record))
         diff = [k for k in keys if not isinstance(old, dict) or old.get(k) != record.get(k)]
 
         def show(v):
             return v[:12] + "..." if isinstance(v, str) and len(v) == 64 else json.dumps(v)
+        if not diff:  # the same values, keys missing: a record written before they existed
+            missing = sorted(set(record) - set(old)) if isinstance(old, dict) else []
+            return False, f"{RECORD} predates {', '.join(missing) or 'this campaign.py'}"
         return False, f"{RECORD} differs: " + "; ".join(
             f"{k} {show(old.get(k) if isinstance(old, dict) else None)} -> {show(record.get(k))}"
             + (f" ({what[k]})" if k in what else "") for k in diff)
@@ -359,6 +369,13 @@ def main(argv=None):
             f"seed); campaign_run.json records mode dds, so these seeds run again once --in-process exists")
         mode = "dds"
     span = {"orbits": float(args.orbits)} if args.orbits is not None else {"duration": args.duration}
+    window_s = None
+    if args.epoch_window is not None:
+        try:
+            window_s = duration_s(args.epoch_window)
+        except ValueError as e:
+            say(f"--epoch-window: {e}")
+            return 2
     span_args = ["--orbits", repr(float(args.orbits))] if args.orbits is not None else ["--duration", args.duration]
     out = os.path.abspath(args.out)
     os.makedirs(os.path.join(out, "logs"), exist_ok=True)
@@ -377,7 +394,7 @@ def main(argv=None):
     for s in seeds:
         d = os.path.join(out, f"seed_{s}")
         record = {"scenario_sha256": scenario_sha, "span": span, "seed": s, "mode": mode,
-                  "seed_plots": bool(args.seed_plots)}
+                  "seed_plots": bool(args.seed_plots), "epoch_window_s": window_s}
         if os.path.exists(d):
             ok, why = (False, "--rerun") if args.rerun else reuse_verdict(d, record)
             if ok:
@@ -387,6 +404,8 @@ def main(argv=None):
             say(f"seed {s}: seed_{s} is stale ({why}): deleting it and re-running the seed")
             shutil.rmtree(d)
         cmd = [swarm, "run", scenario, "--seed", str(s)] + span_args + ["--out", d]
+        if window_s is not None:
+            cmd += ["--epoch-window", repr(window_s)]
         if mode == "in-process":
             cmd.append("--in-process")
         if not args.seed_plots:
@@ -407,7 +426,8 @@ def main(argv=None):
     say(f"{len(results)} seeds run, {len(reused)} reused, {len(failed)} failed, in {wall:.1f} s")
 
     meta = {"scenario_file": args.scenario, "scenario_sha256": scenario_sha, "span": span, "mode": mode,
-            "seeds_requested": seeds, "from_orbit": args.from_orbit, "init_within_orbits": args.init_within_orbits}
+            "seeds_requested": seeds, "from_orbit": args.from_orbit, "init_within_orbits": args.init_within_orbits,
+            "epoch_window_s": window_s}
     failures = [{"seed": r["seed"], "exit_code": r["exit_code"], "problem": r["problem"],
                  "log": os.path.join("logs", f"seed_{r['seed']}.log"), "output_tail": r["tail"]} for r in failed]
     try:
@@ -433,6 +453,32 @@ def main(argv=None):
 
 # ---------------------------------------------------------------- summary and plots
 
+def duration_s(text):
+    """Seconds of a duration as artms-swarm reads it: 90s, 30m, 6h, 1.5d or plain seconds (>= 0)."""
+    t = str(text).strip()
+    scale = {"s": 1.0, "m": 60.0, "h": 3600.0, "d": 86400.0}.get(t[-1:], None)
+    number = t[:-1] if scale else t
+    try:
+        v = float(number) * (scale or 1.0)
+    except ValueError:
+        raise ValueError(f"invalid duration {text!r} (expected e.g. 90s, 30m, 6h, 1.5d or seconds)") from None
+    if not math.isfinite(v) or v < 0:
+        raise ValueError(f"invalid duration {text!r} (expected e.g. 90s, 30m, 6h, 1.5d or seconds)")
+    return v
+
+
+def run_epoch_tt_ns(summary):
+    """The run's epoch (TT ns since J2000) from summary.json; 0 for run folders that predate it (their
+    seeds all share the scenario's epoch, so their absolute times line up as they are)."""
+    return int(summary.get("epoch", {}).get("tt_ns", 0))
+
+
+def since_epoch(series, e0):
+    """{t_tt_ns: x} keyed by the time since the run's epoch instead (seeds drawn with --epoch-window start
+    at different instants and are compared at the same time since their start)."""
+    return {t - e0: x for t, x in series.items()}
+
+
 def _stats(values):
     v = [x for x in values if isinstance(x, (int, float)) and math.isfinite(x)]
     import numpy as np
@@ -451,9 +497,12 @@ def summarise(out, seeds, meta, failures):
     name = None
     nis = {}  # (obs, tgt) -> list over runs of {t: (cumulative nis sum, cumulative updates)}
     zs = {}   # (obs, tgt) -> list over runs of {t: [error / 1-sigma per ROE]}
+    windows = set()  # the runs' epoch windows (summary.json epoch.window_s), s
     for s in seeds:
         d = os.path.join(out, f"seed_{s}")
         summ = read_summary(d)
+        e0 = run_epoch_tt_ns(summ)
+        windows.add(float((summ.get("epoch") or {}).get("window_s", 0.0)))
         name = name or summ.get("scenario")
         for obs, o in summ.get("observers", {}).items():
             period = o.get("period_s", period)
@@ -461,12 +510,14 @@ def summarise(out, seeds, meta, failures):
                 conv.setdefault((obs, tgt), []).append(t.get("convergence_orbits"))
                 per_seed.setdefault((obs, tgt), {})[s] = t
         for k, v in target_nees(d).items():
-            nees.setdefault(k, []).append(v)
+            nees.setdefault(k, []).append(since_epoch(v, e0))
         for k, v in target_nis(d).items():
-            nis.setdefault(k, []).append(v)
+            nis.setdefault(k, []).append(since_epoch(v, e0))
         for k, v in target_normalised_errors(d).items():
-            zs.setdefault(k, []).append(v)
+            zs.setdefault(k, []).append(since_epoch(v, e0))
     R = len(seeds)
+    windows = sorted(windows)
+    meta = {**meta, "epoch_window_s": windows[0] if len(windows) == 1 else windows}
     out_json = {"scenario": name, **meta, "seeds": seeds, "runs": R,
                 "band_95": [float(chi2.ppf(0.025, 6 * R) / R), float(chi2.ppf(0.975, 6 * R) / R)] if R else None,
                 "targets": {}, "nis_note": NIS_NOTE if nis else NIS_MISSING,
@@ -538,7 +589,7 @@ def summarise(out, seeds, meta, failures):
 
 
 COMMON_NOTE = ("The band assumes independent runs. Errors common to every seed (the same world, geometry "
-               "and camera in each: only the noise is drawn) do not average out: per ROE, the RMS over the "
+               "and camera in each unless the epoch is drawn per seed, --epoch-window) do not average out: per ROE, the RMS over the "
                "steps after the latest convergence of the seed-mean of error / 1-sigma, against "
                "total / sqrt(runs) for independent runs (ratio 1); a ratio well above 1 means the band test "
                "measures the common error of one world, not the filter's consistency over worlds.")
@@ -574,9 +625,10 @@ def absolute_entries(out, seeds, meta, period_s):
     runs, finals = {}, {}
     for s in seeds:
         d = os.path.join(out, f"seed_{s}")
+        summ = read_summary(d)
         for obs, v in observer_nees(d).items():
-            runs.setdefault(obs, []).append(v)
-        for obs, o in read_summary(d).get("observers", {}).items():
+            runs.setdefault(obs, []).append(since_epoch(v, run_epoch_tt_ns(summ)))
+        for obs, o in summ.get("observers", {}).items():
             a = o.get("absolute", {})
             if a.get("final_pos_error_m") is not None:
                 finals.setdefault(obs, []).append((a["final_pos_error_m"], a.get("initial_position_error_m"),
@@ -765,12 +817,22 @@ def print_absolute(s):
               f"{fe.get('median')}, max {fe.get('max')} m")
 
 
+def world_text(window_s):
+    """What the campaign's seeds share of the world, from the runs' epoch windows."""
+    if isinstance(window_s, list):
+        return ", seeds with different epoch windows: " + ", ".join(f"{w:g} s" for w in window_s)
+    if window_s:
+        return f", each seed's epoch drawn within {window_s / 3600:g} h of the scenario's (a world per seed)"
+    return ", one world for every seed (the scenario's epoch)"
+
+
 def print_table(s, out):
     def f(v, spec):
         return spec.format(v) if isinstance(v, (int, float)) and math.isfinite(v) else "-"
     print(f"campaign {s['scenario']}: {s['runs']} of {len(s['seeds_requested'])} seeds "
           f"({len(s['failures'])} failed), band 95 % "
-          + (f"[{s['band_95'][0]:.2f}, {s['band_95'][1]:.2f}]" if s["band_95"] else "-"))
+          + (f"[{s['band_95'][0]:.2f}, {s['band_95'][1]:.2f}]" if s["band_95"] else "-")
+          + world_text(s.get("epoch_window_s")))
     print(f"{'target':<10} {'inside latest':>13} {'inside median':>13} {'mean NEES':>9} "
           f"{'dl err % med':>12} {'(max)':>8} {'conv med':>8} {'(max)':>6} {'never':>5} {'mean NIS':>8} {'NIS inside':>10}")
     for k, t in s["targets"].items():

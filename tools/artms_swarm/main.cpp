@@ -161,6 +161,13 @@ pid_t spawn(const fs::path& bin, const std::vector<std::string>& args, const fs:
   return pid;
 }
 
+// Seconds as text that parses back to the same double (a child draws its epoch from it).
+std::string exact_seconds(double s) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", s);
+  return buf;
+}
+
 std::string hms(double s) {
   const long t = static_cast<long>(std::llround(s));
   char buf[32];
@@ -193,6 +200,12 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
   nlohmann::json j;
   j["scenario"] = sc.name;
   j["seed"] = sc.seed;
+  // The run's epoch (drawn from the seed within epoch_window_s after the file's when that is > 0).
+  j["epoch"] = {{"utc", astro::utc_string(sc.epoch)},
+                {"tt_ns", sc.epoch.ns_since_j2000},
+                {"nominal_utc", astro::utc_string(sc.epoch_nominal)},
+                {"window_s", sc.epoch_window_s},
+                {"offset_s", sc.epoch_offset_s}};
   j["sim_duration_s"] = sim_s;
   j["orbits"] = sim_s / sc.reference_period_s();
   // Whether the world is richer than the onboard model (issue 17): the two
@@ -317,7 +330,8 @@ int cmd_validate(const std::string& path) {
 }
 
 int cmd_run(const std::string& scenario_path, const std::string& duration, double orbits,
-            std::optional<std::uint64_t> seed, const std::string& rate_text, std::string out,
+            std::optional<std::uint64_t> seed, const std::string& epoch_window, const std::string& rate_text,
+            std::string out,
             double step_timeout_s, bool in_process, bool report) {
   config::Scenario sc;
   try {
@@ -328,7 +342,8 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   }
   if (!duration.empty()) sc.duration_s = io::parse_duration_s(duration);
   if (orbits > 0.0) sc.duration_s = std::round(orbits * sc.reference_period_s() / sc.step_s) * sc.step_s;
-  if (seed) sc.seed = *seed;
+  if (!epoch_window.empty()) config::set_epoch_window(sc, io::parse_duration_s(epoch_window));
+  if (seed) config::set_seed(sc, *seed);
   double rate = 0.0;
   if (rate_text != "max") {
     char* end = nullptr;
@@ -443,6 +458,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
                                      "--name",     name,
                                      "--duration", dur,
                                      "--seed",     std::to_string(sc.seed),
+                                     "--epoch-window", exact_seconds(sc.epoch_window_s),
                                      "--step-timeout", std::to_string(step_timeout_s)};
     if (rate > 0.0) {
       args.push_back("--rate");
@@ -590,6 +606,10 @@ int main(int argc, char** argv) {
   auto* o = run->add_option("--orbits", orbits, "simulated span in orbits of the first observer");
   d->excludes(o);
   auto* s = run->add_option("--seed", seed, "random seed (overrides the scenario)");
+  std::string epoch_window;
+  run->add_option("--epoch-window", epoch_window,
+                  "draw the run's epoch from the seed within this span after the scenario's (overrides its "
+                  "epoch_window; 24h: each seed over its own part of the geopotential)");
   run->add_option("--rate", rate, "max (lock-step, as fast as possible) or X times real time")->capture_default_str();
   run->add_option("--out", out, "run folder (default runs/<scenario>-<UTC time>)");
   run->add_option("--step-timeout", step_timeout, "seconds a process may take for one step")->capture_default_str();
@@ -606,7 +626,7 @@ int main(int argc, char** argv) {
   try {
     if (*validate) return cmd_validate(vpath);
     return cmd_run(rpath, duration, orbits, s->count() ? std::optional<std::uint64_t>(seed) : std::nullopt,
-                   rate, out, step_timeout, in_process, !no_report);
+                   epoch_window, rate, out, step_timeout, in_process, !no_report);
   } catch (const std::exception& e) {
     std::cerr << "artms-swarm: error: " << e.what() << "\n";
     return 2;

@@ -373,6 +373,9 @@ def _finite(v):
 def case_rows(case_name, run_dir, epoch_tt, settle_orbits):
     """One dict per observer/target of a finished run folder."""
     summ = read_summary(run_dir)
+    # The run's own epoch (a base scenario with epoch_window draws it from the seed); the file's for
+    # run folders that predate summary.json's epoch.
+    epoch_tt = int((summ.get("epoch") or {}).get("tt_ns", epoch_tt))
     table = read_csv(os.path.join(run_dir, "eval", "targets.csv"),
                      required=["t_tt_ns", "observer", "target"] + [f"err_a_{r}_m" for r in ROE]
                      + [f"sigma_a_{r}_m" for r in ROE])

@@ -630,7 +630,7 @@ class Parser {
 
   void parse(const Val& root) {
     Map top(ctx_, root,
-            {"name", "description", "epoch", "duration", "step", "seed", "force_model",
+            {"name", "description", "epoch", "epoch_window", "duration", "step", "seed", "force_model",
              "spacecraft", "observers", "crosslink", "tuning", "maneuvers", "faults"});
     if (!top.ok()) return;
 
@@ -645,6 +645,11 @@ class Parser {
     if (const Val* v = top.require("epoch", kUtcHint)) {
       epoch_ = read_utc(ctx_, *v);
       if (epoch_) s_.epoch = *epoch_;
+    }
+    if (duration_field(ctx_, top, "epoch_window", s_.epoch_window_s, /*allow_zero=*/true) &&
+        s_.epoch_window_s > Scenario::kMaxEpochWindowS) {
+      ctx_.error(*top.find("epoch_window"),
+                 "out of range: expected at most 30 days, got " + fmt_num(s_.epoch_window_s) + " s");
     }
     duration_ok_ =
         duration_field(ctx_, top, "duration", s_.duration_s, false, true) && top.has("duration");
@@ -662,10 +667,9 @@ class Parser {
     }
     if (const Val* v = top.find("seed")) parse_seed(*v);
     if (const Val* v = top.find("force_model")) parse_force_model(*v);
-    // Space weather days count from the epoch; its variation draws from the seed.
+    // Space weather days count from the epoch; its variation draws from the seed (set_seed below).
     for (auto* f : {&s_.force_model, &s_.onboard_force_model}) {
       if (epoch_) f->space_weather.start = *epoch_;
-      f->space_weather.seed = s_.seed;
     }
 
     if (const Val* v = top.require("spacecraft", "a list of spacecraft")) parse_spacecraft(*v);
@@ -677,6 +681,9 @@ class Parser {
 
     check_observer_modes();
     resolve_orbits();
+    // Every instant above was read against the file's epoch; the run's is drawn from the seed.
+    s_.epoch_nominal = s_.epoch;
+    if (ctx_.count() == 0) set_seed(s_, s_.seed);
   }
 
  private:
@@ -1697,6 +1704,58 @@ astro::Vec3 executed_maneuver_dv(const Scenario& s, std::size_t index) {
   const astro::Vec3 e1 = u.unitOrthogonal(), e2 = u.cross(e1);
   const astro::Vec3 dir = (u + g(rng) * e1 + g(rng) * e2).normalized();
   return scale * m.dv_rtn_mps.norm() * dir;
+}
+
+namespace {
+
+// Moves the run's epoch and every instant the file gives by dt_s.
+void shift_instants(Scenario& s, double dt_s) {
+  if (dt_s == 0.0) return;
+  const auto shift = [dt_s](astro::TimeTT& t) { t = t.plus_seconds(dt_s); };
+  shift(s.epoch);
+  for (auto* f : {&s.force_model, &s.onboard_force_model}) shift(f->space_weather.start);
+  for (auto& m : s.maneuvers) shift(m.epoch);
+  for (auto& o : s.observers) {
+    for (auto& w : o.gnss.outages) {
+      shift(w.start);
+      shift(w.end);
+    }
+  }
+  for (auto& l : s.crosslink.outages) {
+    shift(l.window.start);
+    shift(l.window.end);
+  }
+}
+
+// The epoch's offset in [0, window): whole seconds, from a stream of the seed of its own.
+double draw_epoch_offset_s(std::uint64_t seed, double window_s) {
+  if (!(window_s > 0.0)) return 0.0;
+  std::seed_seq seq{seed, std::uint64_t{0x65706f6368}};  // "epoch"
+  std::mt19937_64 rng(seq);
+  const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;  // [0, 1)
+  return std::floor(u * window_s);
+}
+
+void draw_epoch(Scenario& s) {
+  const double offset_s = draw_epoch_offset_s(s.seed, s.epoch_window_s);
+  shift_instants(s, offset_s - s.epoch_offset_s);
+  s.epoch_offset_s = offset_s;
+}
+
+}  // namespace
+
+void set_seed(Scenario& s, std::uint64_t seed) {
+  s.seed = seed;
+  for (auto* f : {&s.force_model, &s.onboard_force_model}) f->space_weather.seed = seed;
+  draw_epoch(s);
+}
+
+void set_epoch_window(Scenario& s, double window_s) {
+  if (!(window_s >= 0.0 && window_s <= Scenario::kMaxEpochWindowS)) {
+    throw std::invalid_argument("epoch window must lie in [0 s, 30 days], got " + fmt_num(window_s) + " s");
+  }
+  s.epoch_window_s = window_s;
+  draw_epoch(s);
 }
 
 Scenario load_scenario(const std::string& path) {

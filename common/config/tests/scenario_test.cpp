@@ -10,8 +10,10 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -561,6 +563,55 @@ TEST(ScenarioLoad, AdaptiveTimeConstantIsADurationNamedWhenOutOfRange) {
              "tuning.sod.adaptive_time_constant", "> 0 s");
   expect_one("tau_long.yaml", kValid + "tuning:\n  sod: {adaptive_time_constant: 40d}\n", 13,
              "tuning.sod.adaptive_time_constant", "at most 30 days");
+}
+TEST(ScenarioLoad, EpochWindowDrawsTheRunsEpochFromTheSeedAndMovesEveryInstantWithIt) {
+  const std::string body = kValid + R"(    gnss: {outages: [{start: 1h, end: 2h}]}
+crosslink:
+  outages: [{from: SV4, start: 3h, end: 4h}]
+maneuvers:
+  - {spacecraft: SV2, epoch: 5h, dv_rtn_mps: [0, 0.05, 0]}
+)";
+  const Scenario fixed = load_scenario(write_file("ew_none.yaml", body));
+  EXPECT_EQ(fixed.epoch, fixed.epoch_nominal);
+  EXPECT_EQ(fixed.epoch_offset_s, 0.0);
+  // Every instant keeps its offset from the run's epoch, and the space weather counts days from it.
+  const auto expect_instants_follow = [](const Scenario& x) {
+    EXPECT_EQ(x.epoch, x.epoch_nominal.plus_seconds(x.epoch_offset_s));
+    EXPECT_EQ(astro::seconds_between(x.epoch, x.observers[0].gnss.outages[0].start), 3600.0);
+    EXPECT_EQ(astro::seconds_between(x.epoch, x.observers[0].gnss.outages[0].end), 7200.0);
+    EXPECT_EQ(astro::seconds_between(x.epoch, x.crosslink.outages[0].window.start), 10800.0);
+    EXPECT_EQ(astro::seconds_between(x.epoch, x.crosslink.outages[0].window.end), 14400.0);
+    EXPECT_EQ(astro::seconds_between(x.epoch, x.maneuvers[0].epoch), 18000.0);
+    EXPECT_EQ(x.force_model.space_weather.start, x.epoch);
+    EXPECT_EQ(x.onboard_force_model.space_weather.start, x.epoch);
+    EXPECT_EQ(x.force_model.space_weather.seed, x.seed);
+  };
+  expect_instants_follow(fixed);
+  Scenario s = load_scenario(write_file("ew_day.yaml", "epoch_window: 24h\n" + body));
+  EXPECT_EQ(s.epoch_window_s, 86400.0);
+  EXPECT_EQ(s.epoch_nominal, fixed.epoch_nominal);
+  std::set<double> offsets;
+  double first = -1.0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    set_seed(s, seed);
+    expect_instants_follow(s);
+    EXPECT_GE(s.epoch_offset_s, 0.0);
+    EXPECT_LT(s.epoch_offset_s, 86400.0);
+    EXPECT_EQ(s.epoch_offset_s, std::floor(s.epoch_offset_s));  // whole seconds
+    if (seed == 1) first = s.epoch_offset_s;
+    offsets.insert(s.epoch_offset_s);
+  }
+  EXPECT_GE(offsets.size(), 19u);  // the seeds fly at different times of day
+  set_seed(s, 1);  // drawn again from the file's epoch, not from the last one
+  EXPECT_EQ(s.epoch_offset_s, first);
+  expect_instants_follow(s);
+  set_epoch_window(s, 0.0);
+  EXPECT_EQ(s.epoch, fixed.epoch);
+  expect_instants_follow(s);
+  EXPECT_THROW(set_epoch_window(s, -1.0), std::invalid_argument);
+  EXPECT_THROW(set_epoch_window(s, 31.0 * 86400.0), std::invalid_argument);
+  expect_one("ew_long.yaml", "epoch_window: 31d\n" + body, 1, "epoch_window", "at most 30 days");
+  expect_one("ew_text.yaml", "epoch_window: a day\n" + body, 1, "epoch_window", "duration");
 }
 TEST(ScenarioLoad, SenderClocksAreOffByDefaultAndNamedWhenWrong) {
   EXPECT_FALSE(load_scenario(write_file("senders_default.yaml", kValid)).tuning.sod.time_tag_senders);

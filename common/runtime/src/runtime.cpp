@@ -157,6 +157,7 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
   CLI::App app{description, app_name};
   ServiceOptions o;
   std::string duration;
+  std::string epoch_window;
   std::uint64_t seed = 0;
   auto* scen = app.add_option("--scenario", o.scenario_path, "scenario YAML file");
   auto* up = app.add_option("--uplink", o.uplink_path,
@@ -167,6 +168,8 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
   app.add_option("--name", o.name, "service name (as in the scenario's process list)")->required();
   auto* dur = app.add_option("--duration", duration, "override the scenario duration (6h, 1d, ...)");
   auto* sd = app.add_option("--seed", seed, "override the scenario seed");
+  auto* ew = app.add_option("--epoch-window", epoch_window,
+                            "override the scenario's epoch_window (the run's epoch drawn from the seed within it)");
   app.add_option("--rate", o.rate, "0 = lock-step as fast as possible; X = X times real time");
   app.add_option("--step-timeout", o.step_timeout_s, "seconds to wait for a step before giving up")
       ->capture_default_str();
@@ -178,6 +181,7 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
   }
   if (dur->count() > 0) o.duration_s = io::parse_duration_s(duration);
   if (sd->count() > 0) o.seed = seed;
+  if (ew->count() > 0) o.epoch_window_s = io::parse_duration_s(epoch_window);
   return o;
 }
 
@@ -205,7 +209,8 @@ config::Scenario load_for_service(const ServiceOptions& o) {
   if (o.scenario_path.empty()) throw std::invalid_argument(o.name + " needs --scenario");
   config::Scenario s = config::load_scenario(o.scenario_path);
   if (o.duration_s) s.duration_s = *o.duration_s;
-  if (o.seed) s.seed = *o.seed;
+  if (o.epoch_window_s) config::set_epoch_window(s, *o.epoch_window_s);
+  if (o.seed) config::set_seed(s, *o.seed);
   return s;
 }
 

@@ -274,10 +274,22 @@ struct Scenario {
   std::string name;         // e.g. "starling-pse"
   std::string description;
   std::string source_path;  // file it was loaded from
-  astro::TimeTT epoch;
+  astro::TimeTT epoch;      // the run's epoch: epoch_nominal + epoch_offset_s
   double duration_s = 0.0;
   double step_s = 60.0;     // lock-step period of the clock
   std::uint64_t seed = 1;
+  // `epoch_window`: the run's epoch is drawn from the seed in
+  // [epoch_nominal, epoch_nominal + epoch_window_s), in whole seconds, and
+  // every instant the file gives (maneuvers, outages, space weather days)
+  // moves with it. The orbits stay where they are in inertial space and the
+  // Sun moves by at most ~1 deg a day, but the Earth turns under them: each
+  // seed of a campaign flies over its own part of the geopotential the
+  // onboard model truncates (docs/sod.md, "One world or many"). 0: the
+  // epoch as given (epoch_offset_s = 0).
+  astro::TimeTT epoch_nominal;
+  double epoch_window_s = 0.0;
+  double epoch_offset_s = 0.0;
+  static constexpr double kMaxEpochWindowS = 30.0 * 86400.0;
   // The world's forces (truth service, renderer) and the onboard model the
   // uplink carries (SOD's propagator). No block, or a single `force_model`
   // block, means both (the paper's onboard model by default);
@@ -308,6 +320,13 @@ struct Scenario {
 // together as a ScenarioError (syntax errors, wrong types, missing required
 // fields, unknown keys, out-of-range values, unknown or duplicate ids).
 Scenario load_scenario(const std::string& path);
+// Sets the run's seed and what is drawn from it when a scenario is loaded:
+// the space weather's day-to-day variation and the epoch within
+// epoch_window_s. Every process applies the launcher's --seed through it.
+void set_seed(Scenario& s, std::uint64_t seed);
+// Sets epoch_window_s and draws the epoch again; std::invalid_argument
+// outside [0, Scenario::kMaxEpochWindowS].
+void set_epoch_window(Scenario& s, double window_s);
 // The delta-v the truth executes for s.maneuvers[index]: the planned one
 // with its execution error (ManeuverConfig::execution_sigma_fraction) drawn
 // from the scenario seed; the commanded one for an unplanned maneuver.

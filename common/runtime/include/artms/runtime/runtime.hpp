@@ -114,6 +114,7 @@ struct ServiceOptions {
   std::string name;
   std::optional<double> duration_s;
   std::optional<std::uint64_t> seed;
+  std::optional<double> epoch_window_s;  // overrides the scenario's epoch_window
   double rate = 0.0;             // 0 = as fast as possible (lock-step only)
   double step_timeout_s = 120.0;
 };
@@ -127,7 +128,7 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
 // exit code 1.
 int run_service(int argc, char** argv, const std::string& app, const std::string& description,
                 const std::function<int(const ServiceOptions&)>& body);
-// Loads the scenario with the overrides applied (duration, seed).
+// Loads the scenario with the overrides applied (duration, epoch window, seed).
 config::Scenario load_for_service(const ServiceOptions& o);
 
 }  // namespace artms::runtime
