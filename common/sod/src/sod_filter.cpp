@@ -629,10 +629,18 @@ UpdateSummary SodFilter::unscented_update(const MeasurementModel& model, const V
   }
   const bool target_bearing = target >= 0 && target < layout_.n_targets && !dry_run;
   const bool unconfirmed = target_bearing && prior_unconfirmed_[static_cast<std::size_t>(target)] != 0;
-  s.underweighted = beta > 0.0 && wide &&
-                    (model.nonlinearity <= 0.0 || unconfirmed || s.nonlinearity > model.nonlinearity);
+  // Graded by the nonlinearity: beta min(1, Omega / kappa), so that the gain
+  // varies continuously with the prior (a hard threshold flipped on state
+  // differences far below the 1-sigma, docs/sod.md "Underweighting").
+  // A statistic that could not be computed (NaN) takes the whole beta.
+  const double ratio = s.nonlinearity / model.nonlinearity;
+  const double graded = (model.nonlinearity <= 0.0 || unconfirmed || !std::isfinite(ratio))
+                            ? 1.0
+                            : std::clamp(ratio, 0.0, 1.0);
+  s.underweighting = beta > 0.0 && wide ? beta * graded : 0.0;
+  s.underweighted = s.underweighting > 0.0;
   if (target_bearing && !wide) prior_unconfirmed_[static_cast<std::size_t>(target)] = 0;
-  MatrixXd S = (s.underweighted ? 1.0 + beta : 1.0) * Pzz + R;
+  MatrixXd S = (1.0 + s.underweighting) * Pzz + R;
   S = 0.5 * (S + S.transpose());
   s.prefit_residual = wrap_z(z - z_mean);
   const Eigen::LLT<MatrixXd> llt_s(S);

@@ -294,7 +294,7 @@ TEST(SodUnderweighting, LimitsTheCollapseOfAWidePriorAndIsValidated) {
   EXPECT_THROW(bad.validate(), std::invalid_argument);
 }
 
-TEST(SodUnderweighting, NonlinearityTriggerReleasesABearingLinearOverItsPrior) {
+TEST(SodUnderweighting, NonlinearityGradesTheUnderweightingOfABearingLinearOverItsPrior) {
   // The statistic trace(P_zz - P_zx P^-1 P_xz) / trace R is the part of the
   // predicted bearing spread that no linear map of the state explains. A
   // prior known to 0.05 % in a*dlambda and 2 m elsewhere still spreads the
@@ -333,12 +333,14 @@ TEST(SodUnderweighting, NonlinearityTriggerReleasesABearingLinearOverItsPrior) {
   const auto [wider_nl, sig_wider] = update(0.02, 40.0, 0.01, true);
   std::printf("nonlinearity / R: tight prior %.2e, wide %.3g, twice as wide %.3g\n", tight_nl.nonlinearity,
               wide_nl.nonlinearity, wider_nl.nonlinearity);
-  EXPECT_TRUE(tight_spread.underweighted);
-  EXPECT_TRUE(tight_guess.underweighted);  // a guessed prior: the spread rule
+  EXPECT_EQ(tight_spread.underweighting, 0.5);
+  EXPECT_EQ(tight_guess.underweighting, 0.5);  // a guessed prior: the spread rule
   EXPECT_LT(tight_nl.nonlinearity, 1e-3);
-  EXPECT_FALSE(tight_nl.underweighted);
+  // Graded: beta min(1, Omega / kappa), a tenth of beta at most for the linear bearing.
+  EXPECT_NEAR(tight_nl.underweighting, 0.5 * tight_nl.nonlinearity / 0.01, 1e-12);
+  EXPECT_LT(tight_nl.underweighting, 0.05);
   EXPECT_GT(wide_nl.nonlinearity, 0.01);
-  EXPECT_TRUE(wide_nl.underweighted);
+  EXPECT_EQ(wide_nl.underweighting, 0.5);
   // Second order in the prior's spread: twice the spread, ~16 times the statistic.
   EXPECT_GT(wider_nl.nonlinearity / wide_nl.nonlinearity, 8.0);
   EXPECT_LT(wider_nl.nonlinearity / wide_nl.nonlinearity, 32.0);

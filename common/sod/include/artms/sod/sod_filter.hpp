@@ -149,14 +149,15 @@ struct SodOptions {
   // that one bearing cannot collapse a wide, nonlinear prior (a stale
   // a-priori, a target seen for the first time). 0 disables.
   double bearing_underweighting = 0.0;
-  // When > 0, a bearing whose spread exceeds its noise is underweighted only
-  // if it is also nonlinear over the prior: the part of P_zz that no linear
-  // map of the state explains, Omega = P_zz - P_zx P^-1 P_xz (the
-  // statistical linearisation's error), must exceed this ratio times R
-  // (traces) too; except while the target's prior is a guess (after an
-  // inflation, a re-initialisation, a manoeuvre of the observer, until a
-  // bearing's spread falls within its noise: prior_unconfirmed()), when the
-  // spread alone decides. 0: the spread alone, always.
+  // When > 0 (kappa), a bearing whose spread exceeds its noise is
+  // underweighted in proportion to how nonlinear it is over the prior:
+  // beta min(1, Omega / kappa), with Omega = trace(P_zz - P_zx P^-1 P_xz) /
+  // trace(R), the part of the spread that no linear map of the state
+  // explains (the statistical linearisation's error) against the noise;
+  // except while the target's prior is a guess (after an inflation, a
+  // re-initialisation, a manoeuvre of the observer, until a bearing's spread
+  // falls within its noise: prior_unconfirmed()), when the whole beta
+  // applies. 0: the whole beta whenever the spread exceeds the noise.
   double bearing_underweighting_nonlinearity = 0.0;
   double gnss_gate_mahalanobis = 6.0;
   // A line of sight between two targets (another observer's bearing of a
@@ -269,7 +270,8 @@ struct UpdateSummary {
   // Computed only where it decides the underweighting (beta > 0,
   // trace P_zz > trace R, bearing_underweighting_nonlinearity > 0); NaN else.
   double nonlinearity = kNaN;
-  bool underweighted = false;
+  double underweighting = 0.0;  // the beta applied: S = (1 + beta) P_zz + R
+  bool underweighted = false;   // underweighting > 0
   double mahalanobis = kNaN;  // sqrt(nis)
   [[nodiscard]] std::string brief_report() const;
 };
