@@ -1038,6 +1038,10 @@ void SodFilter::reinitialize_target(int target, const Vec6& roe, const Mat6& P_r
   P_.middleRows<6>(off).setZero();
   P_.middleCols<6>(off).setZero();
   P_.block<6, 6>(off, off) = 0.5 * (P_roe + P_roe.transpose());
+  // The corrections since the last adaptation were made to the replaced
+  // estimate: they say nothing of the process noise of the new one.
+  pending_dxdx_.middleRows<6>(off).setZero();
+  pending_dxdx_.middleCols<6>(off).setZero();
   counters_[target] = {};
   bod_status_[target] = {};
   recent_nis_count_[static_cast<std::size_t>(target)] = 0;

@@ -519,6 +519,43 @@ TEST(SodAdaptiveNoise, BlockFormStaysBetweenFloorAndCeilingInTheLoewnerOrder) {
   }
 }
 
+// A re-initialisation replaces the target's estimate: the corrections made to
+// the replaced one since the last adaptation do not enter the next (with
+// them, the filter re-initialised after a bearing 0.01 rad off adapts as if
+// it had kept that estimate). Diagonal form without a clamp, so that the
+// estimates themselves are compared.
+TEST(SodAdaptiveNoise, ReinitialisationDropsTheReplacedEstimatesCorrections) {
+  SodOptions o;
+  o.adaptive.floor_factor = 0.0;
+  o.adaptive.ceiling_factor = 1e12;
+  o.bearing_gate_mahalanobis = kInf;
+  // kept: the bearing, no re-initialisation; reinit: the bearing, then a
+  // re-initialisation; none: the re-initialisation alone.
+  Fixture kept(o), reinit(o), none(o);
+  const int off = kept.filter.layout().target_offset(0);
+  const Vec6 roe = kept.filter.state().segment<6>(off);
+  const Mat6 P_roe = kept.filter.covariance().block<6, 6>(off, off);
+  const TimeTT t = kT0.plus_seconds(60.0);
+  for (Fixture* f : {&kept, &reinit, &none}) {
+    ASSERT_TRUE(f->filter.time_update(t).usable);
+    f->truth.advance_to(t);
+  }
+  for (Fixture* f : {&kept, &reinit}) {
+    BearingMeasurement m = f->truth.bearing(0, 20 * astro::kArcsecToRad, 0.0, nullptr);
+    m.angles.az_rad += 0.01;
+    ASSERT_TRUE(f->filter.update_bearing(m).usable);
+  }
+  for (Fixture* f : {&reinit, &none}) f->filter.reinitialize_target(0, roe, P_roe);
+  for (Fixture* f : {&kept, &reinit, &none}) ASSERT_TRUE(f->filter.time_update(t.plus_seconds(60.0)).usable);
+  const VectorXd &qk = kept.filter.process_noise_rate(), &qr = reinit.filter.process_noise_rate(),
+                 &qn = none.filter.process_noise_rate();
+  for (int i = off; i < off + 6; ++i) {
+    EXPECT_NEAR(qr[i], qn[i], 1e-9 * std::abs(qn[i])) << i;
+  }
+  const int dl = off + StateLayout::kDlambda;
+  EXPECT_GT(qk[dl], 10.0 * qn[dl]);  // the bearing's correction would have raised it
+}
+
 // The a-priori model's drift term against two-body propagation of a
 // semi-major-axis error: dlambda(t) - dlambda(0) = -1.5 n da t.
 TEST(SodApriori, DlambdaDriftMatchesPropagatedSemiMajorAxisError) {
