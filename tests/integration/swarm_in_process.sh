@@ -5,8 +5,8 @@
 # spans of the three scenarios the acceptance names: PSE (mode 1, one
 # observer), IT multi (mode 3, three observers, ISL) and the four-observer
 # soak scenario; and the PSE BOD scenario (mode 2: SOD initialised by BOD).
-# And the flight-like PSE with --epoch-window 24h (the run's epoch drawn
-# from the seed). The PSE spans hold BOD attempts (every 90 min), so bod/ is compared too;
+# And the flight-like PSE with --epoch-window 24h --phase-window-deg 360
+# (the run's epoch and orbit phase drawn from the seed). The PSE spans hold BOD attempts (every 90 min), so bod/ is compared too;
 # a span without any attempt fails (bod/<observer>.csv header only).
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
@@ -42,11 +42,29 @@ run it_multi starling_it_multi.yaml --duration 2h
 run soak soak_four_observers.yaml --duration 1h
 # The epoch drawn from the seed within a window (campaigns of independent
 # worlds): every process draws the same one, DDS and in-process alike.
-run pse_window starling_pse_flight.yaml --duration 1h --epoch-window 24h
+# And the orbit phase drawn within a window (each seed from its own point of the orbit).
+run pse_window starling_pse_flight.yaml --duration 1h --epoch-window 24h --phase-window-deg 360
 /usr/bin/python3 - "$WORK/pse_window-dds" <<'PY'
-import json, sys
+import json, math, sys
 d = sys.argv[1]
-e = json.load(open(f"{d}/summary.json"))["epoch"]
+summ = json.load(open(f"{d}/summary.json"))
+e = summ["epoch"]
+ph = summ["orbit_phase"]
+assert ph["window_deg"] == 360.0 and 0 < ph["offset_deg"] < 360.0, ph
+# SV4's first truth state: its argument of latitude is the file's -153 deg turned by the drawn offset
+# (within the difference of the true and the mean argument of latitude, e = 0.0016: 0.2 deg).
+lines = open(f"{d}/truth.oem").read().split("META_STOP")[1].split("\n")
+x = [float(v) for v in next(l for l in lines if l.strip()).split()[1:7]]
+r, v = x[:3], x[3:]
+h = [r[1] * v[2] - r[2] * v[1], r[2] * v[0] - r[0] * v[2], r[0] * v[1] - r[1] * v[0]]
+node = [-h[1], h[0], 0.0]
+hn, rn, nn = (math.sqrt(sum(c * c for c in w)) for w in (h, r, node))
+u = math.degrees(math.acos(sum(a * b for a, b in zip(node, r)) / (nn * rn)))
+if r[2] < 0:
+    u = 360.0 - u
+du = (u - (-153.0 + ph["offset_deg"]) + 180.0) % 360.0 - 180.0
+assert abs(du) < 0.5, (u, ph)
+print(f"  pse_window: orbit phase drawn {ph['offset_deg']:.2f} deg, SV4's first truth state {du:+.3f} deg from it")
 assert e["window_s"] == 86400.0 and 0 < e["offset_s"] < 86400.0, e
 assert e["nominal_utc"] == "2024-05-08T00:00:00.000Z" and e["utc"] != e["nominal_utc"], e
 start = next(l.split("=")[1].strip() for l in open(f"{d}/truth.oem") if l.startswith("START_TIME"))

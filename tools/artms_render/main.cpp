@@ -44,9 +44,13 @@ int run(int argc, char** argv) {
   app.add_flag("--noise-free", noise_free, "no noise, no faint stars: the expected signal (for geometry checks)");
   std::uint64_t seed = 0;
   std::string epoch_window;
+  double phase_window_deg = 0.0;
   auto* seed_opt = app.add_option("--seed", seed, "random seed (overrides the scenario's, as artms-swarm run --seed)");
   app.add_option("--epoch-window", epoch_window,
                  "overrides the scenario's epoch_window (the run's epoch drawn from the seed, as artms-swarm run)");
+  auto* pw = app.add_option("--phase-window-deg", phase_window_deg,
+                            "overrides the scenario's phase_window_deg (the orbit phase drawn from the seed, as "
+                            "artms-swarm run)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -55,6 +59,7 @@ int run(int argc, char** argv) {
   try {
     config::Scenario sc = config::load_scenario(scenario_path);
     if (!epoch_window.empty()) config::set_epoch_window(sc, io::parse_duration_s(epoch_window));
+    if (pw->count() > 0) config::set_phase_window(sc, phase_window_deg);
     if (seed_opt->count() > 0) config::set_seed(sc, seed);
     const double every_s = io::parse_duration_s(every);
     if (!(every_s > 0.0)) throw std::invalid_argument("--every must be positive");

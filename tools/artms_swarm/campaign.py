@@ -192,6 +192,10 @@ def parse_args(argv):
     ap.add_argument("--epoch-window", metavar="D",
                     help="each seed draws its epoch within D after the scenario's (artms-swarm run --epoch-window; "
                          "24h: each seed over its own part of the geopotential, the Sun where it was)")
+    ap.add_argument("--phase-window-deg", type=float, metavar="DEG",
+                    help="each seed draws its orbit phase within DEG (artms-swarm run --phase-window-deg; 360: "
+                         "each seed from its own point of the orbit, so that the latitudes, star fields and Sun "
+                         "phase it meets at a given time differ too)")
     dask = ap.add_mutually_exclusive_group()
     dask.add_argument("--dask-local", type=int, metavar="N",
                       help="run the seeds on a Dask LocalCluster of N workers bound to 127.0.0.1")
@@ -207,6 +211,8 @@ def parse_args(argv):
         ap.error("--dask-local must be at least 1")
     if a.orbits is not None and not (a.orbits > 0 and math.isfinite(a.orbits)):
         ap.error("--orbits must be positive")
+    if a.phase_window_deg is not None and not 0.0 <= a.phase_window_deg <= 360.0:
+        ap.error("--phase-window-deg must lie in [0, 360]")
     return a
 
 
@@ -230,7 +236,8 @@ def reuse_verdict(seed_dir, record):
         return False, f"{RECORD} unreadable ({e})"
     if old != record:
         what = {"scenario_sha256": "the scenario file changed", "span": "another span", "seed": "another seed",
-                "mode": "another run mode", "epoch_window_s": "another epoch window"}
+                "mode": "another run mode", "epoch_window_s": "another epoch window",
+                "phase_window_deg": "another phase window"}
         keys = sorted(set(old) | set(record) if isinstance(old, dict) else set(record))
         diff = [k for k in keys if not isinstance(old, dict) or old.get(k) != record.get(k)]
 
@@ -395,6 +402,8 @@ def main(argv=None):
         d = os.path.join(out, f"seed_{s}")
         record = {"scenario_sha256": scenario_sha, "span": span, "seed": s, "mode": mode,
                   "seed_plots": bool(args.seed_plots), "epoch_window_s": window_s}
+        if args.phase_window_deg is not None:  # absent otherwise, so that earlier seed folders stay reusable
+            record["phase_window_deg"] = args.phase_window_deg
         if os.path.exists(d):
             ok, why = (False, "--rerun") if args.rerun else reuse_verdict(d, record)
             if ok:
@@ -406,6 +415,8 @@ def main(argv=None):
         cmd = [swarm, "run", scenario, "--seed", str(s)] + span_args + ["--out", d]
         if window_s is not None:
             cmd += ["--epoch-window", repr(window_s)]
+        if args.phase_window_deg is not None:
+            cmd += ["--phase-window-deg", repr(args.phase_window_deg)]
         if mode == "in-process":
             cmd.append("--in-process")
         if not args.seed_plots:
@@ -498,11 +509,13 @@ def summarise(out, seeds, meta, failures):
     nis = {}  # (obs, tgt) -> list over runs of {t: (cumulative nis sum, cumulative updates)}
     zs = {}   # (obs, tgt) -> list over runs of {t: [error / 1-sigma per ROE]}
     windows = set()  # the runs' epoch windows (summary.json epoch.window_s), s
+    phases = set()   # the runs' orbit phase windows (summary.json orbit_phase.window_deg), deg
     for s in seeds:
         d = os.path.join(out, f"seed_{s}")
         summ = read_summary(d)
         e0 = run_epoch_tt_ns(summ)
         windows.add(float((summ.get("epoch") or {}).get("window_s", 0.0)))
+        phases.add(float((summ.get("orbit_phase") or {}).get("window_deg", 0.0)))
         name = name or summ.get("scenario")
         for obs, o in summ.get("observers", {}).items():
             period = o.get("period_s", period)
@@ -517,7 +530,9 @@ def summarise(out, seeds, meta, failures):
             zs.setdefault(k, []).append(since_epoch(v, e0))
     R = len(seeds)
     windows = sorted(windows)
-    meta = {**meta, "epoch_window_s": windows[0] if len(windows) == 1 else windows}
+    phases = sorted(phases)
+    meta = {**meta, "epoch_window_s": windows[0] if len(windows) == 1 else windows,
+            "phase_window_deg": phases[0] if len(phases) == 1 else phases}
     out_json = {"scenario": name, **meta, "seeds": seeds, "runs": R,
                 "band_95": [float(chi2.ppf(0.025, 6 * R) / R), float(chi2.ppf(0.975, 6 * R) / R)] if R else None,
                 "targets": {}, "nis_note": NIS_NOTE if nis else NIS_MISSING,
@@ -817,12 +832,21 @@ def print_absolute(s):
               f"{fe.get('median')}, max {fe.get('max')} m")
 
 
-def world_text(window_s):
-    """What the campaign's seeds share of the world, from the runs' epoch windows."""
+def world_text(window_s, phase_deg=None):
+    """What the campaign's seeds share of the world, from the runs' epoch and orbit phase windows."""
+    if isinstance(phase_deg, list):
+        phase = "; seeds with different orbit phase windows: " + ", ".join(f"{w:g} deg" for w in phase_deg)
+    elif phase_deg:
+        phase = f"; each seed's orbit phase drawn within {phase_deg:g} deg"
+    else:
+        phase = ""
     if isinstance(window_s, list):
-        return ", seeds with different epoch windows: " + ", ".join(f"{w:g} s" for w in window_s)
+        return ", seeds with different epoch windows: " + ", ".join(f"{w:g} s" for w in window_s) + phase
     if window_s:
-        return f", each seed's epoch drawn within {window_s / 3600:g} h of the scenario's (a world per seed)"
+        return (f", each seed's epoch drawn within {window_s / 3600:g} h of the scenario's (a world per seed)"
+                + phase)
+    if phase:
+        return ", the scenario's epoch" + phase + " (a world per seed)"
     return ", one world for every seed (the scenario's epoch)"
 
 
@@ -832,7 +856,7 @@ def print_table(s, out):
     print(f"campaign {s['scenario']}: {s['runs']} of {len(s['seeds_requested'])} seeds "
           f"({len(s['failures'])} failed), band 95 % "
           + (f"[{s['band_95'][0]:.2f}, {s['band_95'][1]:.2f}]" if s["band_95"] else "-")
-          + world_text(s.get("epoch_window_s")))
+          + world_text(s.get("epoch_window_s"), s.get("phase_window_deg")))
     print(f"{'target':<10} {'inside latest':>13} {'inside median':>13} {'mean NEES':>9} "
           f"{'dl err % med':>12} {'(max)':>8} {'conv med':>8} {'(max)':>6} {'never':>5} {'mean NIS':>8} {'NIS inside':>10}")
     for k, t in s["targets"].items():

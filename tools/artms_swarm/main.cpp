@@ -206,6 +206,8 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
                 {"nominal_utc", astro::utc_string(sc.epoch_nominal)},
                 {"window_s", sc.epoch_window_s},
                 {"offset_s", sc.epoch_offset_s}};
+  // The orbit phase (drawn from the seed within window_deg when that is > 0).
+  j["orbit_phase"] = {{"window_deg", sc.phase_window_deg}, {"offset_deg", sc.phase_offset_deg}};
   j["sim_duration_s"] = sim_s;
   j["orbits"] = sim_s / sc.reference_period_s();
   // Whether the world is richer than the onboard model (issue 17): the two
@@ -330,7 +332,8 @@ int cmd_validate(const std::string& path) {
 }
 
 int cmd_run(const std::string& scenario_path, const std::string& duration, double orbits,
-            std::optional<std::uint64_t> seed, const std::string& epoch_window, const std::string& rate_text,
+            std::optional<std::uint64_t> seed, const std::string& epoch_window,
+            std::optional<double> phase_window_deg, const std::string& rate_text,
             std::string out,
             double step_timeout_s, bool in_process, bool report) {
   config::Scenario sc;
@@ -343,6 +346,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
   if (!duration.empty()) sc.duration_s = io::parse_duration_s(duration);
   if (orbits > 0.0) sc.duration_s = std::round(orbits * sc.reference_period_s() / sc.step_s) * sc.step_s;
   if (!epoch_window.empty()) config::set_epoch_window(sc, io::parse_duration_s(epoch_window));
+  if (phase_window_deg) config::set_phase_window(sc, *phase_window_deg);
   if (seed) config::set_seed(sc, *seed);
   double rate = 0.0;
   if (rate_text != "max") {
@@ -459,6 +463,7 @@ int cmd_run(const std::string& scenario_path, const std::string& duration, doubl
                                      "--duration", dur,
                                      "--seed",     std::to_string(sc.seed),
                                      "--epoch-window", exact_seconds(sc.epoch_window_s),
+                                     "--phase-window-deg", exact_seconds(sc.phase_window_deg),
                                      "--step-timeout", std::to_string(step_timeout_s)};
     if (rate > 0.0) {
       args.push_back("--rate");
@@ -610,6 +615,11 @@ int main(int argc, char** argv) {
   run->add_option("--epoch-window", epoch_window,
                   "draw the run's epoch from the seed within this span after the scenario's (overrides its "
                   "epoch_window; 24h: each seed over its own part of the geopotential)");
+  double phase_window_deg = 0.0;
+  auto* pw = run->add_option("--phase-window-deg", phase_window_deg,
+                             "draw the orbit phase from the seed within this angle (overrides the scenario's "
+                             "phase_window_deg; 360: each seed from its own point of the orbit)")
+                 ->check(CLI::Range(0.0, 360.0));
   run->add_option("--rate", rate, "max (lock-step, as fast as possible) or X times real time")->capture_default_str();
   run->add_option("--out", out, "run folder (default runs/<scenario>-<UTC time>)");
   run->add_option("--step-timeout", step_timeout, "seconds a process may take for one step")->capture_default_str();
@@ -626,7 +636,7 @@ int main(int argc, char** argv) {
   try {
     if (*validate) return cmd_validate(vpath);
     return cmd_run(rpath, duration, orbits, s->count() ? std::optional<std::uint64_t>(seed) : std::nullopt,
-                   epoch_window, rate, out, step_timeout, in_process, !no_report);
+                   epoch_window, pw->count() ? std::optional<double>(phase_window_deg) : std::nullopt, rate, out, step_timeout, in_process, !no_report);
   } catch (const std::exception& e) {
     std::cerr << "artms-swarm: error: " << e.what() << "\n";
     return 2;

@@ -630,7 +630,7 @@ class Parser {
 
   void parse(const Val& root) {
     Map top(ctx_, root,
-            {"name", "description", "epoch", "epoch_window", "duration", "step", "seed", "force_model",
+            {"name", "description", "epoch", "epoch_window", "phase_window_deg", "duration", "step", "seed", "force_model",
              "spacecraft", "observers", "crosslink", "tuning", "maneuvers", "faults"});
     if (!top.ok()) return;
 
@@ -651,6 +651,7 @@ class Parser {
       ctx_.error(*top.find("epoch_window"),
                  "out of range: expected at most 30 days, got " + fmt_num(s_.epoch_window_s) + " s");
     }
+    number_field(ctx_, top, "phase_window_deg", s_.phase_window_deg, closed(0.0, 360.0), "deg");
     duration_ok_ =
         duration_field(ctx_, top, "duration", s_.duration_s, false, true) && top.has("duration");
     if (duration_field(ctx_, top, "step", s_.step_s, false) && duration_ok_ &&
@@ -1742,12 +1743,35 @@ void draw_epoch(Scenario& s) {
   s.epoch_offset_s = offset_s;
 }
 
+// The orbit phase in [0, window) deg, from a stream of the seed of its own.
+double draw_phase_offset_deg(std::uint64_t seed, double window_deg) {
+  if (!(window_deg > 0.0)) return 0.0;
+  std::seed_seq seq{seed, std::uint64_t{0x7068617365}};  // "phase"
+  std::mt19937_64 rng(seq);
+  return static_cast<double>(rng() >> 11) * 0x1.0p-53 * window_deg;
+}
+
+// Turns every orbit given in absolute elements by the drawn phase along
+// itself (u, or M); the relative ones follow their chiefs.
+void draw_phase(Scenario& s) {
+  const double offset_deg = draw_phase_offset_deg(s.seed, s.phase_window_deg);
+  const double d_rad = (offset_deg - s.phase_offset_deg) * astro::kDegToRad;
+  s.phase_offset_deg = offset_deg;
+  if (d_rad == 0.0) return;
+  for (auto& sc : s.spacecraft) {
+    auto& o = sc.orbit;
+    if (o.kind == InitialOrbit::Kind::kQns) o.qns.u_rad += d_rad;
+    if (o.kind == InitialOrbit::Kind::kKepler) o.kepler.M_rad += d_rad;
+  }
+}
+
 }  // namespace
 
 void set_seed(Scenario& s, std::uint64_t seed) {
   s.seed = seed;
   for (auto* f : {&s.force_model, &s.onboard_force_model}) f->space_weather.seed = seed;
   draw_epoch(s);
+  draw_phase(s);
 }
 
 void set_epoch_window(Scenario& s, double window_s) {
@@ -1756,6 +1780,14 @@ void set_epoch_window(Scenario& s, double window_s) {
   }
   s.epoch_window_s = window_s;
   draw_epoch(s);
+}
+
+void set_phase_window(Scenario& s, double window_deg) {
+  if (!(window_deg >= 0.0 && window_deg <= 360.0)) {
+    throw std::invalid_argument("phase window must lie in [0, 360] deg, got " + fmt_num(window_deg) + " deg");
+  }
+  s.phase_window_deg = window_deg;
+  draw_phase(s);
 }
 
 Scenario load_scenario(const std::string& path) {

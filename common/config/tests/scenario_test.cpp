@@ -613,6 +613,43 @@ maneuvers:
   expect_one("ew_long.yaml", "epoch_window: 31d\n" + body, 1, "epoch_window", "at most 30 days");
   expect_one("ew_text.yaml", "epoch_window: a day\n" + body, 1, "epoch_window", "duration");
 }
+TEST(ScenarioLoad, PhaseWindowTurnsTheAbsoluteOrbitsByTheDrawnPhaseAndTheFormationFollows) {
+  const Scenario fixed = load_scenario(write_file("pw_none.yaml", kValid));
+  EXPECT_EQ(fixed.phase_offset_deg, 0.0);
+  Scenario s = load_scenario(write_file("pw_full.yaml", "phase_window_deg: 360\n" + kValid));
+  EXPECT_EQ(s.phase_window_deg, 360.0);
+  const astro::QnsElements q0 = fixed.spacecraft_by_id("SV4").orbit.qns;
+  const astro::Roe roe0 = astro::roe_from_qns(astro::qns_from_cartesian(fixed.initial_state_eci("SV4")),
+                                              astro::qns_from_cartesian(fixed.initial_state_eci("SV2")));
+  std::set<double> offsets;
+  double first = -1.0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    set_seed(s, seed);
+    EXPECT_GE(s.phase_offset_deg, 0.0);
+    EXPECT_LT(s.phase_offset_deg, 360.0);
+    if (seed == 1) first = s.phase_offset_deg;
+    offsets.insert(s.phase_offset_deg);
+    // The chief turned along its orbit by the offset, nothing else of it changed.
+    const astro::QnsElements q = s.spacecraft_by_id("SV4").orbit.qns;
+    EXPECT_NEAR(astro::wrap_pi(q.u_rad - q0.u_rad - s.phase_offset_deg * astro::kDegToRad), 0.0, 1e-12);
+    EXPECT_EQ(q.a_m, q0.a_m);
+    EXPECT_EQ(q.raan_rad, q0.raan_rad);
+    // The deputy follows: the same osculating ROE (to the map's round-off), another place on the orbit.
+    const astro::Roe roe = astro::roe_from_qns(astro::qns_from_cartesian(s.initial_state_eci("SV4")),
+                                               astro::qns_from_cartesian(s.initial_state_eci("SV2")));
+    EXPECT_LT(q0.a_m * (roe.as_vector() - roe0.as_vector()).cwiseAbs().maxCoeff(), 1e-3);  // m
+    EXPECT_EQ(s.epoch, fixed.epoch);  // the epoch stays (its own window is 0)
+  }
+  EXPECT_EQ(offsets.size(), 20u);
+  set_seed(s, 1);  // the same draw again
+  EXPECT_EQ(s.phase_offset_deg, first);
+  set_phase_window(s, 0.0);
+  EXPECT_EQ(s.phase_offset_deg, 0.0);
+  EXPECT_NEAR(s.spacecraft_by_id("SV4").orbit.qns.u_rad, q0.u_rad, 1e-12);
+  EXPECT_THROW(set_phase_window(s, -1.0), std::invalid_argument);
+  EXPECT_THROW(set_phase_window(s, 361.0), std::invalid_argument);
+  expect_one("pw_big.yaml", "phase_window_deg: 400\n" + kValid, 1, "phase_window_deg", "400");
+}
 TEST(ScenarioLoad, SenderClocksAreOffByDefaultAndNamedWhenWrong) {
   EXPECT_FALSE(load_scenario(write_file("senders_default.yaml", kValid)).tuning.sod.time_tag_senders);
   const Scenario s = load_scenario(

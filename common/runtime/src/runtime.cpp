@@ -158,6 +158,7 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
   ServiceOptions o;
   std::string duration;
   std::string epoch_window;
+  double phase_window_deg = 0.0;
   std::uint64_t seed = 0;
   auto* scen = app.add_option("--scenario", o.scenario_path, "scenario YAML file");
   auto* up = app.add_option("--uplink", o.uplink_path,
@@ -170,6 +171,8 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
   auto* sd = app.add_option("--seed", seed, "override the scenario seed");
   auto* ew = app.add_option("--epoch-window", epoch_window,
                             "override the scenario's epoch_window (the run's epoch drawn from the seed within it)");
+  auto* pw = app.add_option("--phase-window-deg", phase_window_deg,
+                            "override the scenario's phase_window_deg (the orbit phase drawn from the seed within it)");
   app.add_option("--rate", o.rate, "0 = lock-step as fast as possible; X = X times real time");
   app.add_option("--step-timeout", o.step_timeout_s, "seconds to wait for a step before giving up")
       ->capture_default_str();
@@ -182,6 +185,7 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
   if (dur->count() > 0) o.duration_s = io::parse_duration_s(duration);
   if (sd->count() > 0) o.seed = seed;
   if (ew->count() > 0) o.epoch_window_s = io::parse_duration_s(epoch_window);
+  if (pw->count() > 0) o.phase_window_deg = phase_window_deg;
   return o;
 }
 
@@ -210,6 +214,7 @@ config::Scenario load_for_service(const ServiceOptions& o) {
   config::Scenario s = config::load_scenario(o.scenario_path);
   if (o.duration_s) s.duration_s = *o.duration_s;
   if (o.epoch_window_s) config::set_epoch_window(s, *o.epoch_window_s);
+  if (o.phase_window_deg) config::set_phase_window(s, *o.phase_window_deg);
   if (o.seed) config::set_seed(s, *o.seed);
   return s;
 }

@@ -290,6 +290,17 @@ struct Scenario {
   double epoch_window_s = 0.0;
   double epoch_offset_s = 0.0;
   static constexpr double kMaxEpochWindowS = 30.0 * 86400.0;
+  // `phase_window_deg`: the orbit phase drawn from the seed, an angle in
+  // [0, phase_window_deg) added to the mean argument of latitude (the mean
+  // anomaly of Keplerian elements) of every spacecraft whose orbit the file
+  // gives in absolute elements; relative orbits follow their chiefs, so the
+  // formation is the same. Each seed then starts at its own point of the
+  // orbit: the latitudes it flies at a given time since the epoch (the zonal
+  // gravity the onboard model truncates), the star fields behind its
+  // targets and the Sun's phase differ (docs/sod.md, "One world or many").
+  // 0: the orbits as given.
+  double phase_window_deg = 0.0;
+  double phase_offset_deg = 0.0;
   // The world's forces (truth service, renderer) and the onboard model the
   // uplink carries (SOD's propagator). No block, or a single `force_model`
   // block, means both (the paper's onboard model by default);
@@ -321,12 +332,15 @@ struct Scenario {
 // fields, unknown keys, out-of-range values, unknown or duplicate ids).
 Scenario load_scenario(const std::string& path);
 // Sets the run's seed and what is drawn from it when a scenario is loaded:
-// the space weather's day-to-day variation and the epoch within
-// epoch_window_s. Every process applies the launcher's --seed through it.
+// the space weather's day-to-day variation, the epoch within epoch_window_s
+// and the orbit phase within phase_window_deg. Every process applies the launcher's --seed through it.
 void set_seed(Scenario& s, std::uint64_t seed);
 // Sets epoch_window_s and draws the epoch again; std::invalid_argument
 // outside [0, Scenario::kMaxEpochWindowS].
 void set_epoch_window(Scenario& s, double window_s);
+// Sets phase_window_deg and draws the orbit phase again; std::invalid_argument
+// outside [0, 360].
+void set_phase_window(Scenario& s, double window_deg);
 // The delta-v the truth executes for s.maneuvers[index]: the planned one
 // with its execution error (ManeuverConfig::execution_sigma_fraction) drawn
 // from the scenario seed; the commanded one for an unplanned maneuver.

@@ -114,7 +114,8 @@ struct ServiceOptions {
   std::string name;
   std::optional<double> duration_s;
   std::optional<std::uint64_t> seed;
-  std::optional<double> epoch_window_s;  // overrides the scenario's epoch_window
+  std::optional<double> epoch_window_s;    // overrides the scenario's epoch_window
+  std::optional<double> phase_window_deg;  // overrides the scenario's phase_window_deg
   double rate = 0.0;             // 0 = as fast as possible (lock-step only)
   double step_timeout_s = 120.0;
 };
@@ -128,7 +129,7 @@ std::optional<ServiceOptions> parse_service_options(int argc, char** argv, const
 // exit code 1.
 int run_service(int argc, char** argv, const std::string& app, const std::string& description,
                 const std::function<int(const ServiceOptions&)>& body);
-// Loads the scenario with the overrides applied (duration, epoch window, seed).
+// Loads the scenario with the overrides applied (duration, epoch and phase windows, seed).
 config::Scenario load_for_service(const ServiceOptions& o);
 
 }  // namespace artms::runtime
