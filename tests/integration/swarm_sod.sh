@@ -8,7 +8,8 @@
 # steps after convergence; eval/ files and artms-report plots written.
 # artms-sod-replay on the same run folder: SOD re-run offline on the recorded
 # GNSS fixes and bearings ends on the observer's own final 1-sigma (within
-# 5 %); with synthetic bearings it runs; an unknown observer is a clear error.
+# 5 %); with synthetic bearings it runs; every measurement row recorded twice
+# gives the same figures (fused once); an unknown observer is a clear error.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -34,6 +35,22 @@ PY
 "$BIN/artms-sod-replay" "$WORK/run" --csv "$WORK/replay.csv" > "$WORK/replay.out" || { cat "$WORK/replay.out"; exit 1; }
 "$BIN/artms-sod-replay" "$WORK/run" --bearings synthetic --after-orbits 1 > "$WORK/replay_synthetic.out"
 cat "$WORK/replay.out" "$WORK/replay_synthetic.out"
+# A bearing recorded twice (an aided detection that is also a track's) is
+# fused once, as the navigator does: the same figures with every row doubled.
+cp -r "$WORK/run" "$WORK/run_doubled"
+/usr/bin/python3 - "$WORK/run_doubled/imp/SV4/measurements.csv" <<'PY'
+import sys
+p = sys.argv[1]
+lines = open(p).read().splitlines()
+open(p, "w").write("\n".join(lines[:1] + [l for l in lines[1:] for _ in (0, 1)]) + "\n")
+PY
+"$BIN/artms-sod-replay" "$WORK/run_doubled" > "$WORK/replay_doubled.out" || { cat "$WORK/replay_doubled.out"; exit 1; }
+n_rows=$(($(wc -l < "$WORK/run/imp/SV4/measurements.csv") - 1))
+grep -q ", $n_rows recorded twice fused once" "$WORK/replay_doubled.out" \
+  || { echo "FAIL: doubled rows not counted ($n_rows)"; cat "$WORK/replay_doubled.out"; exit 1; }
+diff <(grep "bearings fused" "$WORK/replay.out") <(grep "bearings fused" "$WORK/replay_doubled.out") \
+  || { echo "FAIL: doubled rows changed the replay"; exit 1; }
+echo "  replay: $n_rows rows doubled, fused once, the same figures"
 if "$BIN/artms-sod-replay" "$WORK/run" --observer SV9 2> "$WORK/replay_bad.err"; then echo "FAIL: unknown observer accepted"; exit 1; fi
 grep -q "uplink/SV9.json" "$WORK/replay_bad.err" || { echo "FAIL: unclear error"; cat "$WORK/replay_bad.err"; exit 1; }
 if "$BIN/artms-sod-replay" "$WORK/run" --leave-out 'SV2>SV3' 2> "$WORK/replay_bad2.err"; then echo "FAIL: --leave-out accepted in mode 1"; exit 1; fi

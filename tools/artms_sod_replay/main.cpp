@@ -36,9 +36,11 @@
 #include <memory>
 #include <optional>
 #include <random>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "artms/astro/elements.hpp"
@@ -107,9 +109,11 @@ std::map<std::int64_t, std::vector<Los>> read_all_bearings(
     const std::string path = run_dir + "/imp/" + sender + "/measurements.csv";
     if (!std::filesystem::exists(path)) continue;
     const auto m = io::CsvTable::read(path);
+    std::set<std::tuple<std::int64_t, double, double>> seen;  // a row recorded twice is fused once (as above)
     for (std::size_t r = 0; r < m.size(); ++r) {
       const std::int64_t t = m.integer(r, "t_tt_ns");
       const Eigen::Vector2d p(m.number(r, "x_px"), m.number(r, "y_px"));
+      if (!seen.emplace(t, p.x(), p.y()).second) continue;
       std::string body;
       double best_d = 3.0;
       const auto frame = px.find(t);
@@ -455,10 +459,17 @@ int run(int argc, char** argv) {
     Bearing b;
   };
   std::vector<TimedBearing> bearings;
-  int unassigned = 0, blended = 0;
+  int unassigned = 0, blended = 0, repeated = 0;
   {
     const auto m = io::CsvTable::read(run_dir + "/imp/" + observer + "/measurements.csv");
+    std::set<std::tuple<std::int64_t, double, double>> seen;
     for (std::size_t r = 0; r < m.size(); ++r) {
+      // IMP reports a SOD-aided single detection that is also a track's
+      // bearing twice; the navigator fuses it once (Navigator::direct_assigned).
+      if (!seen.emplace(m.integer(r, "frame"), m.number(r, "x_px"), m.number(r, "y_px")).second) {
+        ++repeated;
+        continue;
+      }
       const auto fit = frame_truth.find(m.integer(r, "frame"));
       if (fit == frame_truth.end()) {
         ++unassigned;
@@ -630,9 +641,9 @@ int run(int argc, char** argv) {
                              "its frame (frames.csv); nothing to replay");
   const sod::SodFilter& f = *filter;
   std::printf("%s, observer %s, bearings %s (seed %llu, sigma x %.2f); %d recorded bearings not within 3 px of a "
-              "target, %d left out as blended\n",
+              "target, %d left out as blended, %d recorded twice fused once\n",
               run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(seed),
-              sigma_scale, unassigned, blended);
+              sigma_scale, unassigned, blended, repeated);
   for (int k = 0; k < n; ++k) {
     const auto ku = static_cast<std::size_t>(k);
     std::printf("  %s: %d of %d bearings fused; average NEES after orbit %.1f: %.2f (%d steps); final a*dlambda "
