@@ -89,9 +89,12 @@ struct NavigatorOptions {
   double direct_gate_chi2 = 9.21;            // 2 dof, 99 %: single detections of untracked targets
   double direct_max_sigma_rad = 300.0 * 4.84813681109536e-6;  // widest validity region (RSS 1-sigma) used
   // A local bearing of a target whose predicted pixel lies this close to
-  // another target's is left out: the two spots blend into one centroid
-  // (5 PSF sigmas of the NST; with the uplinked fx). 0 disables.
-  double blend_separation_px = 6.0;
+  // another target's is left out: within ~6 px (5 PSF sigmas of the NST)
+  // the other spot's light pulls its centroid (a spot 3 x as bright: 0.2 px
+  // at 5 px, AidedDetection.ABrighterSpotPullsTheCentroidAtFivePixelsNotAtEight);
+  // 2 px more for the error of the predicted pixels (docs/sod.md, "The
+  // orbit phase"). With the uplinked fx. 0 disables.
+  double blend_separation_px = 8.0;
   // A target that had bearings and has had none for lost_after_steps filter
   // steps, while an unbound IMP track is unambiguously nearest its prediction
   // (mean d2 in [lost_min_d2, lost_max_d2)), is suspect: its covariance is inflated so
