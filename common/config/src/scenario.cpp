@@ -1728,13 +1728,17 @@ void shift_instants(Scenario& s, double dt_s) {
   }
 }
 
-// The epoch's offset in [0, window): whole seconds, from a stream of the seed of its own.
+// A uniform draw in [0, 1) from a stream of the seed of its own (tag).
+double uniform_from_seed(std::uint64_t seed, std::uint64_t tag) {
+  std::seed_seq seq{seed, tag};
+  std::mt19937_64 rng(seq);
+  return static_cast<double>(rng() >> 11) * 0x1.0p-53;
+}
+
+// The epoch's offset in [0, window): whole seconds.
 double draw_epoch_offset_s(std::uint64_t seed, double window_s) {
   if (!(window_s > 0.0)) return 0.0;
-  std::seed_seq seq{seed, std::uint64_t{0x65706f6368}};  // "epoch"
-  std::mt19937_64 rng(seq);
-  const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;  // [0, 1)
-  return std::floor(u * window_s);
+  return std::floor(uniform_from_seed(seed, 0x65706f6368) * window_s);  // "epoch"
 }
 
 void draw_epoch(Scenario& s) {
@@ -1743,12 +1747,10 @@ void draw_epoch(Scenario& s) {
   s.epoch_offset_s = offset_s;
 }
 
-// The orbit phase in [0, window) deg, from a stream of the seed of its own.
+// The orbit phase in [0, window) deg.
 double draw_phase_offset_deg(std::uint64_t seed, double window_deg) {
   if (!(window_deg > 0.0)) return 0.0;
-  std::seed_seq seq{seed, std::uint64_t{0x7068617365}};  // "phase"
-  std::mt19937_64 rng(seq);
-  return static_cast<double>(rng() >> 11) * 0x1.0p-53 * window_deg;
+  return uniform_from_seed(seed, 0x7068617365) * window_deg;  // "phase"
 }
 
 // Turns every orbit given in absolute elements by the drawn phase along
