@@ -208,6 +208,17 @@ nlohmann::json make_summary(const config::Scenario& sc, const fs::path& dir,
                 {"offset_s", sc.epoch_offset_s}};
   // The orbit phase (drawn from the seed within window_deg when that is > 0).
   j["orbit_phase"] = {{"window_deg", sc.phase_window_deg}, {"offset_deg", sc.phase_offset_deg}};
+  // The camera clocks' faults as the world has them: the file's offset and
+  // drift plus the residuals drawn from the seed (time_tag_*_sigma).
+  j["camera_clock_faults"] = nlohmann::json::array();
+  for (const auto& f : sc.faults) {
+    if (f.time_tag_offset_total_s() == 0.0 && f.time_tag_drift_total_ppm() == 0.0) continue;
+    j["camera_clock_faults"].push_back({{"observer", f.observer.empty() ? "all" : f.observer},
+                                        {"offset_s", f.time_tag_offset_total_s()},
+                                        {"drift_ppm", f.time_tag_drift_total_ppm()},
+                                        {"offset_drawn_s", f.time_tag_offset_drawn_s},
+                                        {"drift_drawn_ppm", f.time_tag_drift_drawn_ppm}});
+  }
   j["sim_duration_s"] = sim_s;
   j["orbits"] = sim_s / sc.reference_period_s();
   // Whether the world is richer than the onboard model (issue 17): the two

@@ -1523,7 +1523,8 @@ class Parser {
     std::map<std::string, Loc> seen;
     for (const Val& item : *list) {
       Map m(ctx_, item,
-            {"observer", "frame_dropout_probability", "time_tag_offset_s", "time_tag_drift_ppm"});
+            {"observer", "frame_dropout_probability", "time_tag_offset_s", "time_tag_drift_ppm",
+             "time_tag_offset_sigma_s", "time_tag_drift_sigma_ppm"});
       if (!m.ok()) continue;
       FaultConfig f;
       if (const Val* ov = m.find("observer")) {
@@ -1553,6 +1554,9 @@ class Parser {
       number_field(ctx_, m, "time_tag_offset_s", f.time_tag_offset_s, any_finite(), "s");
       number_field(ctx_, m, "time_tag_drift_ppm", f.time_tag_drift_ppm,
                    Range{-1e6, 1e6, true, true}, "ppm");
+      number_field(ctx_, m, "time_tag_offset_sigma_s", f.time_tag_offset_sigma_s, Range{0.0, 60.0, false, false}, "s");
+      number_field(ctx_, m, "time_tag_drift_sigma_ppm", f.time_tag_drift_sigma_ppm, Range{0.0, 1e4, false, false},
+                   "ppm");
       s_.faults.push_back(std::move(f));
     }
   }
@@ -1767,6 +1771,31 @@ void draw_phase(Scenario& s) {
   }
 }
 
+// A standard normal draw from two uniforms of the seed's stream `tag`
+// (Box-Muller): the same bytes on every platform.
+double normal_from_seed(std::uint64_t seed, std::uint64_t tag) {
+  const double u1 = 1.0 - uniform_from_seed(seed, tag);  // (0, 1]
+  const double u2 = uniform_from_seed(seed, tag + 1);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * astro::kPi * u2);
+}
+
+// 64-bit FNV-1a of an observer's id: its own streams.
+std::uint64_t id_hash(const std::string& id) {
+  std::uint64_t h = 0xcbf29ce484222325ULL;
+  for (const char c : id) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001b3ULL;
+  return h;
+}
+
+// Each fault's clock residual after the ground's correction.
+void draw_clock_faults(Scenario& s) {
+  for (auto& f : s.faults) {
+    const std::uint64_t h = id_hash(f.observer);
+    f.time_tag_offset_drawn_s = f.time_tag_offset_sigma_s * normal_from_seed(s.seed, h ^ 0x7461676f6666ULL);  // "tagoff"
+    f.time_tag_drift_drawn_ppm =
+        f.time_tag_drift_sigma_ppm * normal_from_seed(s.seed, h ^ 0x7461676472ULL);  // "tagdr"
+  }
+}
+
 }  // namespace
 
 void set_seed(Scenario& s, std::uint64_t seed) {
@@ -1774,6 +1803,7 @@ void set_seed(Scenario& s, std::uint64_t seed) {
   for (auto* f : {&s.force_model, &s.onboard_force_model}) f->space_weather.seed = seed;
   draw_epoch(s);
   draw_phase(s);
+  draw_clock_faults(s);
 }
 
 void set_epoch_window(Scenario& s, double window_s) {

@@ -650,6 +650,48 @@ TEST(ScenarioLoad, PhaseWindowTurnsTheAbsoluteOrbitsByTheDrawnPhaseAndTheFormati
   EXPECT_THROW(set_phase_window(s, 361.0), std::invalid_argument);
   expect_one("pw_big.yaml", "phase_window_deg: 400\n" + kValid, 1, "phase_window_deg", "400");
 }
+TEST(ScenarioLoad, ClockResidualIsDrawnPerSeedWithItsOneSigmaAndNamedWhenWrong) {
+  const std::string faults =
+      "faults:\n  - {observer: SV4, time_tag_offset_s: -0.4, time_tag_offset_sigma_s: 0.05, "
+      "time_tag_drift_sigma_ppm: 2}\n";
+  Scenario s = load_scenario(write_file("clock_draw.yaml", kValid + faults));
+  ASSERT_EQ(s.faults.size(), 1u);
+  const FaultConfig& f = s.faults.front();
+  EXPECT_EQ(f.time_tag_offset_s, -0.4);  // the file's value kept apart from the draw
+  // Over many seeds the residuals are centred with the given 1-sigmas, and independent.
+  const int n = 4000;
+  double so = 0.0, so2 = 0.0, sd = 0.0, sd2 = 0.0, sod = 0.0;
+  for (int seed = 1; seed <= n; ++seed) {
+    set_seed(s, static_cast<std::uint64_t>(seed));
+    EXPECT_EQ(f.time_tag_offset_total_s(), -0.4 + f.time_tag_offset_drawn_s);
+    EXPECT_EQ(f.time_tag_drift_total_ppm(), f.time_tag_drift_drawn_ppm);
+    so += f.time_tag_offset_drawn_s;
+    so2 += f.time_tag_offset_drawn_s * f.time_tag_offset_drawn_s;
+    sd += f.time_tag_drift_drawn_ppm;
+    sd2 += f.time_tag_drift_drawn_ppm * f.time_tag_drift_drawn_ppm;
+    sod += f.time_tag_offset_drawn_s * f.time_tag_drift_drawn_ppm;
+  }
+  EXPECT_NEAR(so / n, 0.0, 4.0 * 0.05 / std::sqrt(n));
+  EXPECT_NEAR(std::sqrt(so2 / n), 0.05, 0.05 * 0.05);  // 1-sigma within 5 % (its sampling 1-sigma ~1.1 %)
+  EXPECT_NEAR(sd / n, 0.0, 4.0 * 2.0 / std::sqrt(n));
+  EXPECT_NEAR(std::sqrt(sd2 / n), 2.0, 2.0 * 0.05);
+  EXPECT_NEAR(sod / n / (0.05 * 2.0), 0.0, 0.07);  // uncorrelated (|rho| < 4.4 of its sampling sigma)
+  set_seed(s, 7);
+  const double offset7 = f.time_tag_offset_drawn_s;
+  set_seed(s, 8);
+  EXPECT_NE(f.time_tag_offset_drawn_s, offset7);
+  set_seed(s, 7);
+  EXPECT_EQ(f.time_tag_offset_drawn_s, offset7);  // the same seed, the same world
+  // No 1-sigma: no draw.
+  Scenario plain = load_scenario(write_file("clock_plain.yaml", kValid + "faults:\n  - {observer: SV4, time_tag_offset_s: -0.4}\n"));
+  set_seed(plain, 7);
+  EXPECT_EQ(plain.faults.front().time_tag_offset_total_s(), -0.4);
+  EXPECT_EQ(plain.faults.front().time_tag_drift_total_ppm(), 0.0);
+  expect_one("clock_bad.yaml", kValid + "faults:\n  - {observer: SV4, time_tag_offset_sigma_s: -1}\n", 13,
+             "faults[0].time_tag_offset_sigma_s", "-1");
+  expect_one("clock_bad2.yaml", kValid + "faults:\n  - {observer: SV4, time_tag_drift_sigma_ppm: 2e4}\n", 13,
+             "faults[0].time_tag_drift_sigma_ppm", "20000");
+}
 TEST(ScenarioLoad, SenderClocksAreOffByDefaultAndNamedWhenWrong) {
   EXPECT_FALSE(load_scenario(write_file("senders_default.yaml", kValid)).tuning.sod.time_tag_senders);
   const Scenario s = load_scenario(

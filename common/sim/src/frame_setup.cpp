@@ -52,8 +52,8 @@ FrameSetup make_frame_setup(const config::Scenario& s, const std::string& observ
   for (const auto& f : s.faults) {
     if (f.observer.empty() || f.observer == observer) {
       options.faults.dropout_probability = f.frame_dropout_probability;
-      options.faults.time_tag_offset_s = f.time_tag_offset_s;
-      options.faults.time_tag_drift_ppm = f.time_tag_drift_ppm;
+      options.faults.time_tag_offset_s = f.time_tag_offset_total_s();
+      options.faults.time_tag_drift_ppm = f.time_tag_drift_total_ppm();
     }
   }
   FrameSetup setup{imaging::FrameRenderer(std::move(camera), std::move(catalog), options), observer,

@@ -268,6 +268,17 @@ struct FaultConfig {
   double frame_dropout_probability = 0.0;  // [0, 1)
   double time_tag_offset_s = 0.0;
   double time_tag_drift_ppm = 0.0;
+  // The clock's residual after the ground's correction: per seed, the
+  // offset and the drift each get a normal draw of these 1-sigmas
+  // (`time_tag_offset_sigma_s`, `time_tag_drift_sigma_ppm`; 0: none). The
+  // drawn values are kept apart from the file's, and the camera's tags err
+  // by the sums (time_tag_offset_total_s, time_tag_drift_total_ppm).
+  double time_tag_offset_sigma_s = 0.0;
+  double time_tag_drift_sigma_ppm = 0.0;
+  double time_tag_offset_drawn_s = 0.0;
+  double time_tag_drift_drawn_ppm = 0.0;
+  [[nodiscard]] double time_tag_offset_total_s() const { return time_tag_offset_s + time_tag_offset_drawn_s; }
+  [[nodiscard]] double time_tag_drift_total_ppm() const { return time_tag_drift_ppm + time_tag_drift_drawn_ppm; }
 };
 
 struct Scenario {
@@ -332,8 +343,8 @@ struct Scenario {
 // fields, unknown keys, out-of-range values, unknown or duplicate ids).
 Scenario load_scenario(const std::string& path);
 // Sets the run's seed and what is drawn from it when a scenario is loaded:
-// the space weather's day-to-day variation, the epoch within epoch_window_s
-// and the orbit phase within phase_window_deg. Every process applies the launcher's --seed through it.
+// the space weather's day-to-day variation, the epoch within epoch_window_s,
+// the orbit phase within phase_window_deg and the faults' clock residuals. Every process applies the launcher's --seed through it.
 void set_seed(Scenario& s, std::uint64_t seed);
 // Sets epoch_window_s and draws the epoch again; std::invalid_argument
 // outside [0, Scenario::kMaxEpochWindowS].
