@@ -6,7 +6,7 @@
 # observer), IT multi (mode 3, three observers, ISL) and the four-observer
 # soak scenario; and the PSE BOD scenario (mode 2: SOD initialised by BOD).
 # And the flight-like PSE with --epoch-window 24h --phase-window-deg 360
-# (the run's epoch and orbit phase drawn from the seed). The PSE spans hold BOD attempts (every 90 min), so bod/ is compared too;
+# (the run's epoch, orbit phase and camera clock residual drawn from the seed). The PSE spans hold BOD attempts (every 90 min), so bod/ is compared too;
 # a span without any attempt fails (bod/<observer>.csv header only).
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
@@ -70,5 +70,16 @@ assert e["nominal_utc"] == "2024-05-08T00:00:00.000Z" and e["utc"] != e["nominal
 start = next(l.split("=")[1].strip() for l in open(f"{d}/truth.oem") if l.startswith("START_TIME"))
 assert start.startswith(e["utc"][:19]), (start, e)
 print(f"  pse_window: epoch drawn {e['utc']} ({e['offset_s']:.0f} s after the scenario's), the truth's OEM starts there")
+# The camera clock's residual after the ground's correction, drawn from the seed: the world's first frame is
+# tagged by the file's -0.4 s plus the draw (frames.csv is the same bytes in-process).
+cc = summ["camera_clock_faults"]
+assert len(cc) == 1 and cc[0]["observer"] == "SV4" and cc[0]["offset_drawn_s"] != 0.0, cc
+assert abs(cc[0]["offset_s"] - (-0.4 + cc[0]["offset_drawn_s"])) < 1e-12, cc
+import csv
+f0 = next(r for r in csv.DictReader(open(f"{d}/frames.csv")) if r["frame"] == "0")
+tag_s = (int(f0["time_tag_tt_ns"]) - int(f0["t_tt_ns"])) * 1e-9
+assert abs(tag_s - cc[0]["offset_s"]) < 1e-6, (tag_s, cc)
+print(f"  pse_window: camera clock {cc[0]['offset_s']:+.4f} s ({cc[0]['offset_drawn_s']:+.4f} s drawn), "
+      f"{cc[0]['drift_ppm']:+.2f} ppm; the first frame's tag {tag_s:+.4f} s")
 PY
 echo "swarm in-process: ok"

@@ -114,13 +114,14 @@ CASES = [
                "spacecraft[id=SV3].drag_area_m2": Scale(0.5, 0.068)}},
     {"name": "target_burn", "description": "SV2 (a target) burns 0.05 m/s along-track at 8 h",
      "edits": {"maneuvers[+]": {"spacecraft": "SV2", "epoch": "8h", "dv_rtn_mps": ALONG_TRACK_0_05}}},
-    # The remedy for the clock cases: SOD estimates the time-tag offset and drift (a filter setting, not the world).
-    {"name": "tag_plus_0.05_estimated", "description": "tag_plus_0.05 with SOD estimating the time-tag offset and drift",
+    # The clock cases with SOD estimating the offset and drift from wide priors (a filter setting, not the world).
+    {"name": "tag_plus_0.05_estimated", "description": "tag_plus_0.05 with SOD estimating the time-tag offset and "
+     "drift from the schema's wide priors (1 s, 100 ppm)",
      "edits": {"faults[observer=SV4].time_tag_offset_s": 0.05,
                "observers[spacecraft=SV4].camera.time_tag_correction_s": DELETE,
                "tuning.sod.time_tag": {"estimate": "drift"}}},
     {"name": "tag_drift_50ppm_estimated", "description": "tag_drift_50ppm with SOD estimating the time-tag offset "
-     "and drift",
+     "and drift from the schema's wide priors (1 s, 100 ppm)",
      "edits": {"faults[observer=SV4].time_tag_drift_ppm": 50, "tuning.sod.time_tag": {"estimate": "drift"}}},
 ]
 
