@@ -5,6 +5,9 @@
 #     a-priori of SV4; BOD initialises it from its IMP track within 2 orbits,
 #     the first estimate's dlambda error is <= 5 % of range and inside 3 sigma,
 #     bod/SV2.csv records the attempt that did it and its residual curve;
+#     SV2's camera clock is off by a drawn residual that SOD estimates, so
+#     SOD's first 1-sigma holds BOD's own and the clock's doubt
+#     (Navigator::add_clock_doubt): more than 1.5 x BOD's recorded sigma;
 #  2. starling_pse_burn_large.yaml 11 h: SV2 burns 0.5 m/s along-track at
 #     08:00; SV4's navigator names health check 1 and re-initialises SV2 from
 #     BOD before 11:00 (two BOD periods);
@@ -43,6 +46,10 @@ init = [r for r in rows if r["action"].startswith("SOD initialised from BOD")]
 assert init and init[0]["verdict"] == "0" and init[0]["target"] == "SV4", rows
 curve = [r for r in csv.DictReader(open(f"{work}/mode2/bod/SV2_curves.csv")) if r["attempt"] == init[0]["attempt"]]
 assert len(curve) >= 50, len(curve)
+bod_sigma_pct = 100 * float(init[0]["sigma_range_m"]) / float(init[0]["range_m"])
+print(f"mode 2: BOD's own range 1-sigma {bod_sigma_pct:.2f} %, SOD's first {t['initial_dlambda_sigma_pct']:.2f} % "
+      f"with the camera clock's doubt")
+assert t["initial_dlambda_sigma_pct"] > 1.5 * bod_sigma_pct, (t, bod_sigma_pct)
 log = open(f"{work}/burn/events.log").read().splitlines()
 hits = [l for l in log if "SV2 unhealthy (health check 1" in l and "re-initialised from BOD" in l]
 assert hits, "no health check 1 on SV2 after its burn"

@@ -1114,7 +1114,15 @@ double roe_distance2(const Vec6& roe_a, const Mat6& P_a, const Vec6& roe_b, cons
 double Navigator::bod_distance2(int k, const OsculatingRoe& b) const {
   const auto& f = *filter_;
   const int off = f.layout().target_offset(k);
-  const double d2 = roe_distance2(b.roe, b.P, f.state().segment<6>(off), f.covariance().block<6, 6>(off, off));
+  Mat6 P_sod = f.covariance().block<6, 6>(off, off);
+  const auto& L = f.layout();
+  if (b.clock_J.size() > 0 && L.n_time_tag > 0) {
+    // Both errors hold the clock's: BOD's -J e_clock, SOD's through its
+    // cross-covariance. Var(BOD - SOD) = P_BOD + J P_cc J^T + P_kk + J P_ck + P_kc J^T.
+    const Mat6 cross = b.clock_J * f.covariance().block(L.time_tag_offset(), off, L.n_time_tag, 6);
+    P_sod += cross + cross.transpose();
+  }
+  const double d2 = roe_distance2(b.roe, b.P, f.state().segment<6>(off), P_sod);
   return std::isfinite(d2) ? d2 : 1e30;
 }
 
@@ -1164,8 +1172,43 @@ void Navigator::bind_track(int track, int k, astro::TimeTT t) {
   as.segment = h != history_.end() && !h->second.empty() ? h->second.back().segment : 1;
 }
 
+void Navigator::add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measurement>& batch,
+                                const bod::ObserverPrior& prior, const BodEstimate& est) const {
+  const auto& f = *filter_;
+  const auto& L = f.layout();
+  if (L.n_time_tag == 0) return;
+  // The batch's times are the tags less SOD's clock estimate: BOD's error
+  // holds J (SOD's clock error), J = d roe / d(time shift) by solving the
+  // batch again with its times shifted (finite differences of the size of a
+  // clock's doubt: 0.05 s, and 10 ppm of t - SOD's epoch for the drift).
+  constexpr double kShiftS = 0.05;
+  constexpr double kDriftShift = 1e-5;
+  b.clock_J = Eigen::MatrixXd::Zero(6, L.n_time_tag);
+  for (int c = 0; c < L.n_time_tag; ++c) {
+    std::vector<bod::Measurement> shifted = batch;
+    for (auto& m : shifted) {
+      m.t = m.t.plus_seconds(c == 0 ? kShiftS : kDriftShift * astro::seconds_between(f.epoch(), m.t));
+    }
+    const bod::Result rs = bod::solve(shifted, prior, bod_opt_);
+    if (!rs.usable()) throw std::runtime_error("its clock sensitivity: the shifted batch is not usable");
+    const OsculatingRoe bs = osculating_at({est.t, prior.mean, rs.roe_mean.as_vector(), rs.P_roe_mean}, est.t, f.observer());
+    Vec6 d = bs.roe - b.roe;
+    d[1] = astro::wrap_pi(d[1]);
+    b.clock_J.col(c) = d / (c == 0 ? kShiftS : kDriftShift);
+  }
+  const int o = L.time_tag_offset();
+  const Eigen::MatrixXd P_clock = f.covariance().block(o, o, L.n_time_tag, L.n_time_tag);
+  b.P_without_clock = b.P;
+  b.P += b.clock_J * P_clock * b.clock_J.transpose();
+  b.P = 0.5 * (b.P + b.P.transpose()).eval();
+}
+
 void Navigator::set_target_from_bod(int k, int track, const OsculatingRoe& b, astro::TimeTT t, const std::string& why) {
-  filter_->reinitialize_target(k, b.roe, b.P);
+  if (b.clock_J.size() > 0) {
+    filter_->reinitialize_target(k, b.roe, b.P_without_clock, b.clock_J);
+  } else {
+    filter_->reinitialize_target(k, b.roe, b.P);
+  }
   suspect_[static_cast<std::size_t>(k)] = false;
   manoeuvre_flagged_[static_cast<std::size_t>(k)].reset();
   pre_flag_[static_cast<std::size_t>(k)].reset();
@@ -1242,11 +1285,12 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     ++attempted;
     ++bod_attempts_;
     bod::Result r = bod::solve(batch, prior, bod_opt_);
+    const std::vector<bod::Measurement>* solved = &batch;
     // A batch that no single orbit fits (the target manoeuvred, or the track
     // swapped objects, within it) is tried again on its latest orbit alone.
     const double orbit_s = astro::orbit_period_s(prior.mean.a_m);
+    std::vector<bod::Measurement> latest;
     if (!r.usable() && r.verdict != bod::Verdict::kTooFewMeasurements && up_.tuning.bod.batch_orbits > 1.0) {
-      std::vector<bod::Measurement> latest;
       for (const auto& m : batch) {
         if (astro::seconds_between(m.t, t_est) <= orbit_s) latest.push_back(m);
       }
@@ -1257,6 +1301,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
                               std::to_string(batch.size()) + "-bearing batch is not usable (" + r.brief() +
                               "); its latest orbit alone is");
           r = std::move(again);
+          solved = &latest;
         }
       }
     }
@@ -1304,6 +1349,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     OsculatingRoe b;
     try {
       b = osculating_at(est, t_est, f.observer());
+      add_clock_doubt(b, *solved, prior, est);
     } catch (const std::exception& ex) {
       decided(-1, std::string("not used: ") + ex.what());
       messages_.push_back(head + r.brief() + "; not used: " + ex.what());

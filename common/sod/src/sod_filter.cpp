@@ -1048,6 +1048,24 @@ void SodFilter::reinitialize_target(int target, const Vec6& roe, const Mat6& P_r
   prior_unconfirmed_[static_cast<std::size_t>(target)] = 1;
 }
 
+void SodFilter::reinitialize_target(int target, const Vec6& roe, const Mat6& P_roe, const Eigen::MatrixXd& clock_J) {
+  const int n = layout_.n_time_tag;
+  if (n == 0 || clock_J.size() == 0) {
+    reinitialize_target(target, roe, P_roe);
+    return;
+  }
+  if (clock_J.rows() != 6 || clock_J.cols() != n || !clock_J.allFinite())
+    throw std::invalid_argument("SodFilter::reinitialize_target: clock_J must be finite, 6 x n_time_tag");
+  reinitialize_target(target, roe, P_roe);  // the target's old correlations gone
+  const int off = layout_.target_offset(target);
+  const MatrixXd cross = -clock_J * P_.middleRows(layout_.time_tag_offset(), n);  // 6 x N, zero in the target's columns
+  P_.middleRows<6>(off) = cross;
+  P_.middleCols<6>(off) = cross.transpose();
+  const Mat6 P_clock = clock_J * P_.block(layout_.time_tag_offset(), layout_.time_tag_offset(), n, n) *
+                       clock_J.transpose();
+  P_.block<6, 6>(off, off) = 0.5 * (P_roe + P_roe.transpose()) + 0.5 * (P_clock + P_clock.transpose());
+}
+
 void SodFilter::inflate_target(int target, double factor) {
   if (target < 0 || target >= layout_.n_targets)
     throw std::invalid_argument("SodFilter::inflate_target: target index out of range");

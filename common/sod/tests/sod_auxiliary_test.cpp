@@ -100,6 +100,74 @@ AuxRun run_time_tag(double tag_offset_s, int n_time_tag, int orbits, std::uint64
 
 // A +0.5 s time-tag offset is estimated within 0.02 s in 6 orbits and the
 // ROE stay within 3 sigma (issue 17, acceptance 4, in the filter alone).
+// A target re-initialised from an estimator that used this filter's clock
+// (BOD's batch): its covariance gains J P_clock J^T, its cross-covariances
+// are -J P_clock,*, and the joint covariance stays positive definite. The
+// estimate's error then matches a Monte Carlo of e = -J e_clock + n.
+TEST(SodAuxiliary, ReinitialisationFromAClockDependentEstimateCarriesTheClockDoubt) {
+  const astro::QnsElements obs0 = testing::observer_at_start();
+  std::vector<Vec6> a_roe = testing::starling_a_roe_m();
+  a_roe.resize(2);
+  StateLayout layout{2, 0};
+  layout.n_time_tag = 2;
+  SodFilter filter(testing::j2_forces(), {}, {}, layout, SodOptions{});
+  const InitialGuess g = testing::shifted_initial_guess(obs0, a_roe, 0.02, 30.0);
+  MatrixXd P = MatrixXd::Zero(layout.size(), layout.size());
+  P.topLeftCorner(g.P.rows(), g.P.cols()) = g.P;
+  const int c = layout.time_tag_offset();
+  P(c, c) = 0.05 * 0.05;
+  P(c + 1, c + 1) = 1e-10;  // 10 ppm
+  P(c, c + 1) = P(c + 1, c) = 0.5 * 0.05 * 1e-5;
+  // The other target correlated with the clock, as bearings make it.
+  const int other = layout.target_offset(0);
+  P(other + 1, c) = P(c, other + 1) = 0.5 * std::sqrt(P(other + 1, other + 1)) * 0.05;
+  VectorXd x0 = VectorXd::Zero(layout.size());
+  x0.head(g.x.size()) = g.x;
+  filter.initialize(kT0, x0, P);
+
+  const int k = 1, off = layout.target_offset(k);
+  const Vec6 roe = a_roe[1] / obs0.a_m;
+  const Mat6 P_own = (Vec6() << 1e-12, 1e-8, 1e-11, 1e-11, 1e-11, 1e-11).finished().asDiagonal();
+  MatrixXd J = MatrixXd::Zero(6, 2);
+  J(1, 0) = -0.02 / 0.05 * 1.0;   // dlambda: 2 % of range per 0.05 s (2 v dt / rho at ~50 km)
+  J(0, 0) = 1e-7;
+  J(1, 1) = -300.0;               // per unit drift (s/s) over the batch
+  filter.reinitialize_target(k, roe, P_own, J);
+  const MatrixXd& Pn = filter.covariance();
+  const MatrixXd Pcc = P.block(c, c, 2, 2);
+  EXPECT_LT((Pn.block(off, off, 6, 6) - (P_own + J * Pcc * J.transpose())).norm(), 1e-15);
+  EXPECT_LT((Pn.block(off, c, 6, 2) - (-J * Pcc)).norm(), 1e-18);
+  // Correlated with the other target through the clock: -J P_clock,other.
+  EXPECT_LT((Pn.block(off, other, 6, 6) - (-J * P.block(c, other, 2, 6))).norm(), 1e-18);
+  EXPECT_NE(Pn(off + 1, other + 1), 0.0);
+  EXPECT_LT((Pn - Pn.transpose()).norm(), 1e-18);
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<MatrixXd>(Pn).eigenvalues().minCoeff(), 0.0);
+  EXPECT_EQ(filter.state().segment<6>(off), roe);
+  // Against a Monte Carlo of the estimator's error -J e_clock + n.
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> N01;
+  const Eigen::LLT<MatrixXd> Lc(Pcc);
+  const Eigen::LLT<Mat6> Ln(P_own);
+  Eigen::Vector2d s_ce = Eigen::Vector2d::Zero();
+  double s_ll = 0.0;
+  const int n = 20000;
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector2d z{N01(rng), N01(rng)};
+    Vec6 w;
+    for (int j = 0; j < 6; ++j) w[j] = N01(rng);
+    const Eigen::Vector2d ec = Lc.matrixL() * z;
+    const Vec6 e = -J * ec + Ln.matrixL() * w;
+    s_ll += e[1] * e[1];
+    s_ce += e[1] * ec;
+  }
+  EXPECT_NEAR(s_ll / n / Pn(off + 1, off + 1), 1.0, 0.05);
+  EXPECT_NEAR(s_ce[0] / n / Pn(off + 1, c), 1.0, 0.05);
+  // An empty J is the plain re-initialisation: no clock correlation.
+  filter.reinitialize_target(k, roe, P_own, MatrixXd());
+  EXPECT_EQ(filter.covariance().block(off, c, 6, 2).norm(), 0.0);
+  EXPECT_THROW(filter.reinitialize_target(k, roe, P_own, MatrixXd::Zero(6, 1)), std::invalid_argument);
+}
+
 TEST(SodAuxiliary, TimeTagOffsetIsEstimatedFromBearings) {
   constexpr double kOffset_s = 0.5, kTol_s = 0.02;
   const AuxRun r = run_time_tag(kOffset_s, 1, 6, 7);

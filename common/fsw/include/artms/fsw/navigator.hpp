@@ -322,7 +322,12 @@ class Navigator {
   // The same as SOD holds a target: osculating ROE and covariance.
   struct OsculatingRoe {
     astro::Vec6 roe = astro::Vec6::Zero();
-    astro::Mat6 P = astro::Mat6::Zero();
+    astro::Mat6 P = astro::Mat6::Zero();  // with the camera clock's doubt (J P_clock J^T) when clock_J is set
+    // A BOD estimate's sensitivity to the time tags SOD gave its batch
+    // (6 x n_time_tag, empty without a time-tag state), and its covariance
+    // without the clock's doubt (SodFilter::reinitialize_target).
+    Eigen::MatrixXd clock_J;
+    astro::Mat6 P_without_clock = astro::Mat6::Zero();
   };
 
   const config::ObserverUplink& up_;
@@ -413,6 +418,11 @@ class Navigator {
   // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating
   // ROE relative to the observer's osculating elements observer_osc at t
   // (what SOD estimates), the covariance through the same maps.
+  // Adds to a usable BOD estimate its sensitivity to the camera clock SOD
+  // estimates and that doubt to its covariance (throws when the shifted
+  // batch is not usable).
+  void add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measurement>& batch, const bod::ObserverPrior& prior,
+                       const BodEstimate& est) const;
   [[nodiscard]] static OsculatingRoe osculating_at(const BodEstimate& b, astro::TimeTT t,
                                                    const astro::QnsElements& observer_osc);
   // Health check (1): squared Mahalanobis distance between b and SOD's target k.

@@ -408,6 +408,15 @@ class SodFilter {
   // dimensionless) and covariance, clears its cross-covariances and counters.
   // Throws std::invalid_argument if P_roe is not symmetric positive definite.
   void reinitialize_target(int target, const Vec6& roe, const Mat6& P_roe);
+  // The same for an estimate made with the camera's time tags as this filter
+  // knows them (BOD's batch): its error is -J e_clock + n, with J = d roe /
+  // d(time shift) of the estimator (6 x n_time_tag: a uniform shift of 1 s,
+  // and one of 1 s per second of (t - epoch) for the drift), e_clock this
+  // filter's clock error and n the estimator's own error of covariance
+  // P_roe. Its cross-covariances are -J P_clock,* and its covariance P_roe +
+  // J P_clock J^T: the clock's doubt enters the target without being counted
+  // twice. An empty J (or no time-tag state) is the overload above.
+  void reinitialize_target(int target, const Vec6& roe, const Mat6& P_roe, const Eigen::MatrixXd& clock_J);
   // From the latest estimate passed to check_bod(); false if there is none.
   bool reinitialize_target_from_bod(int target);
   void reinitialize_observer(const astro::QnsElements& observer, const Mat6& P);
