@@ -1173,7 +1173,7 @@ void Navigator::bind_track(int track, int k, astro::TimeTT t) {
 }
 
 void Navigator::add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measurement>& batch,
-                                const bod::ObserverPrior& prior, const BodEstimate& est) const {
+                                const bod::ObserverPrior& prior) const {
   const auto& f = *filter_;
   const auto& L = f.layout();
   if (L.n_time_tag == 0) return;
@@ -1191,7 +1191,8 @@ void Navigator::add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measure
     }
     const bod::Result rs = bod::solve(shifted, prior, bod_opt_);
     if (!rs.usable()) throw std::runtime_error("its clock sensitivity: the shifted batch is not usable");
-    const OsculatingRoe bs = osculating_at({est.t, prior.mean, rs.roe_mean.as_vector(), rs.P_roe_mean}, est.t, f.observer());
+    const OsculatingRoe bs =
+        osculating_at({prior.t_est, prior.mean, rs.roe_mean.as_vector(), rs.P_roe_mean}, prior.t_est, f.observer());
     Vec6 d = bs.roe - b.roe;
     d[1] = astro::wrap_pi(d[1]);
     b.clock_J.col(c) = d / (c == 0 ? kShiftS : kDriftShift);
@@ -1349,7 +1350,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     OsculatingRoe b;
     try {
       b = osculating_at(est, t_est, f.observer());
-      add_clock_doubt(b, *solved, prior, est);
+      add_clock_doubt(b, *solved, prior);
     } catch (const std::exception& ex) {
       decided(-1, std::string("not used: ") + ex.what());
       messages_.push_back(head + r.brief() + "; not used: " + ex.what());

@@ -415,14 +415,14 @@ class Navigator {
   [[nodiscard]] double pre_flag_distance2(int k, const OsculatingRoe& b, astro::TimeTT t) const;
   void set_suspect(int k, bool on, const std::string& why);
   void run_bod(astro::TimeTT t_est);
-  // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating
-  // ROE relative to the observer's osculating elements observer_osc at t
-  // (what SOD estimates), the covariance through the same maps.
   // Adds to a usable BOD estimate its sensitivity to the camera clock SOD
   // estimates and that doubt to its covariance (throws when the shifted
   // batch is not usable).
-  void add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measurement>& batch, const bod::ObserverPrior& prior,
-                       const BodEstimate& est) const;
+  void add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measurement>& batch,
+                       const bod::ObserverPrior& prior) const;
+  // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating
+  // ROE relative to the observer's osculating elements observer_osc at t
+  // (what SOD estimates), the covariance through the same maps.
   [[nodiscard]] static OsculatingRoe osculating_at(const BodEstimate& b, astro::TimeTT t,
                                                    const astro::QnsElements& observer_osc);
   // Health check (1): squared Mahalanobis distance between b and SOD's target k.
