@@ -1698,11 +1698,12 @@ NavReport Navigator::report(astro::TimeTT t) const {
   return r;
 }
 
-std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
-                                                             const std::vector<int>& taken,
-                                                             const astro::StateVector& observer_eci,
-                                                             const imp::Samus& samus) {
-  std::vector<std::pair<int, int>> used;
+std::vector<Navigator::DirectAssignment> Navigator::assign_untracked(astro::TimeTT t,
+                                                                     const std::vector<imp::Candidate>& candidates,
+                                                                     const std::vector<int>& taken,
+                                                                     const astro::StateVector& observer_eci,
+                                                                     const imp::Samus& samus) {
+  std::vector<DirectAssignment> used;
   // SAMUS releases a track's measurements at most dbscan_frames + n_scan frames late.
   while (!direct_.empty() && astro::seconds_between(direct_.front().first, t) > 4.0 * 3600.0) direct_.pop_front();
   if (!filter_ || reinit_pending_ || candidates.empty()) return used;
@@ -1744,7 +1745,7 @@ std::vector<std::pair<int, int>> Navigator::assign_untracked(astro::TimeTT t, co
       ++hits;
     }
     if (hits != 1) continue;
-    used.emplace_back(hit, static_cast<int>(k));
+    used.push_back({hit, static_cast<int>(k), width[k]});
   }
   return used;
 }

@@ -97,6 +97,9 @@ Observer::Observer(ObserverSetup setup, std::string source)
     catalog_ = imp::StarIdCatalog::build(std::move(id_stars), 2.0 * K_.half_diagonal_fov_rad());
     processor_.emplace(K_, *catalog_, frame_processor_options(c, up_.tuning.imp));
     processor_->set_blend_stars(std::move(blend_stars));
+    // The faint-star check of single detections looks at the frames before
+    // too (45 % of frames dropped: the one before is often missing).
+    processor_->keep_recent_frames(kFaintStarFramesBefore);
     samus_.emplace(samus_options(c, up_.tuning.imp));
   }
   aided_options_ = aided_detection_options(up_.camera_calibration, up_.tuning.imp);
@@ -307,8 +310,10 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
     rep.residual_arcsec = fr.residual_rms_rad / astro::kArcsecToRad;
     rep.attitude_sigma_arcsec = fr.attitude_sigma_rad / astro::kArcsecToRad;
     // Single detections SOD assigned in earlier frames: a source at the same
-    // inertial direction in this frame is a faint star (refused); otherwise
-    // (or off this frame's sensor) the bearing is released.
+    // inertial direction in this frame is a faint star (refused); none there
+    // releases the bearing. One that neither this frame nor the frames before
+    // it could check (off their sensors) is released only from a narrow
+    // validity region (NavigatorOptions::direct_unverified_max_sigma_rad).
     if (navigator_) {
       for (const auto& p : pending_direct_) {
         const auto star = processor_->source_at(pixels, p.c.u_eci, aided_options_);
@@ -316,6 +321,7 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
           ++n_.direct_refused_star;
           continue;
         }
+        if (!star && !p.checked_before && !unverified_direct_usable(p)) continue;
         release_direct(p);
       }
       pending_direct_.clear();
@@ -378,9 +384,16 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
           }
         }
         // Held until the next frame has shown that it is not a faint star.
-        for (const auto& [ci, k] : navigator_->assign_untracked(tf, candidates, ss.taken, in.observer_eci, *samus_)) {
-          pending_direct_.push_back({f.frame_seq, f.time_tag_tt_ns, k, candidates[static_cast<std::size_t>(ci)],
-                                     fr.q_cam_from_eci});
+        for (const auto& a : navigator_->assign_untracked(tf, candidates, ss.taken, in.observer_eci, *samus_)) {
+          const imp::Candidate& c = candidates[static_cast<std::size_t>(a.candidate)];
+          // A source at the same inertial direction in a frame before is a faint star too.
+          const auto before = processor_->source_before(c.u_eci, aided_options_);
+          if (before && *before) {
+            ++n_.direct_refused_star;
+            continue;
+          }
+          pending_direct_.push_back(
+              {f.frame_seq, f.time_tag_tt_ns, a.target, c, fr.q_cam_from_eci, a.region_sigma_rad, before.has_value()});
         }
       }
       for (const auto& m : ss.released) {
@@ -400,6 +413,12 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
   out.imp.push_back(std::move(rep));
 }
 
+bool Observer::unverified_direct_usable(const PendingDirect& p) {
+  if (navigator_ && p.region_sigma_rad <= navigator_->options().direct_unverified_max_sigma_rad) return true;
+  ++n_.direct_refused_unverified;
+  return false;
+}
+
 void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
   // Last navigation step: SAMUS releases what it holds.
   samus_flushed_ = true;
@@ -408,6 +427,7 @@ void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
   rep.t_tt_ns = t.ns_since_j2000;
   rep.status = bus::FrameStatus::kEnd;
   for (const auto& p : pending_direct_) {  // no later frame to check them against
+    if (!p.checked_before && !unverified_direct_usable(p)) continue;
     if (navigator_) navigator_->add_direct(astro::TimeTT{p.t_ns}, p.target, p.c.u_eci, p.q_cam_from_eci, p.c.sigma_rad);
     rep.measurements.push_back(imp_measurement(p.frame_seq, p.t_ns, bus::single_detection_track(p.target), p.c));
   }
@@ -428,7 +448,10 @@ void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
                                      std::to_string(n_.aided_detections) + " SOD-aided detections, " +
                                      std::to_string(n_.direct_refused_star) +
                                      " single detections refused as faint stars (seen again at the same "
-                                     "inertial direction)");
+                                     "inertial direction), " +
+                                     std::to_string(n_.direct_refused_unverified) +
+                                     " refused unchecked (no frame before or after saw their direction; "
+                                     "validity region too wide)");
 }
 
 bus::NavTelemetry Observer::navigation(astro::TimeTT t) const {

@@ -499,7 +499,7 @@ TEST(NavigatorTimeTags, UntrackedTargetsArePredictedAtTheImageTimeNotTheTag) {
   c.sigma_rad = 3.0 * astro::kArcsecToRad;
   const auto used = nav.assign_untracked(t_tag, {c}, {}, observer_at_tag, framed);
   ASSERT_EQ(used.size(), 1u);
-  EXPECT_EQ(used[0].second, 0);
+  EXPECT_EQ(used[0].target, 0);
   c.u_eci = u_at_tag;
   EXPECT_TRUE(nav.assign_untracked(t_tag, {c}, {}, observer_at_tag, framed).empty());
 }

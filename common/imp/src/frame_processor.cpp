@@ -56,11 +56,17 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
   out.psf_sigma_px = opt_.detection.psf_sigma_px;
   const DetectionResult det = detect(pixels, K_.width, K_.height, opt_.detection);
   out.detections = static_cast<int>(det.centroids.size());
+  if (last_.attitude_usable && keep_recent_ > 0) {
+    recent_.push_front(std::move(last_));
+    while (recent_.size() > keep_recent_) recent_.pop_back();
+  }
   last_ = Last{};
   last_.t_s = t_s;
   last_.noise_dn = det.noise_dn;
   for (const auto& c : det.centroids) last_.detections_px.emplace_back(c.x_px, c.y_px);
   for (const std::size_t k : det.hot_suspects) {
+    last_.hot_px.emplace_back(static_cast<double>(k % static_cast<std::size_t>(K_.width)),
+                              static_cast<double>(k / static_cast<std::size_t>(K_.width)));
     if (++hot_counts_[k] == opt_.persistence.hot_map_min_frames) {
       hot_known_px_.emplace_back(static_cast<double>(k % static_cast<std::size_t>(K_.width)),
                                  static_cast<double>(k / static_cast<std::size_t>(K_.width)));
@@ -238,6 +244,7 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
   last_.attitude_usable = true;
   last_.attitude_sigma_rad = out.attitude_sigma_rad;
   last_.R_eci_from_cam = R_eci_from_cam;
+  if (keep_recent_ > 0) last_.pixels.assign(pixels.begin(), pixels.end());
   // Forget frames beyond the history window.
   while (!history_.empty() && (static_cast<int>(history_.size()) >= opt_.persistence.history_frames ||
                                t_s - history_.front().t_s > opt_.persistence.history_max_age_s)) {
@@ -326,17 +333,45 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
 
 std::optional<bool> FrameProcessor::source_at(std::span<const std::uint16_t> pixels, const Eigen::Vector3d& u_eci,
                                               const AidedDetectionOptions& options, double tolerance_px) const {
-  if (!last_.attitude_usable) return std::nullopt;
-  const auto px = K_.project(last_.R_eci_from_cam.transpose() * u_eci);
+  return source_in(last_, pixels, u_eci, options, tolerance_px);
+}
+
+std::optional<bool> FrameProcessor::source_before(const Eigen::Vector3d& u_eci, const AidedDetectionOptions& options,
+                                                  double tolerance_px) const {
+  for (const Last& frame : recent_) {
+    if (const auto r = source_in(frame, frame.pixels, u_eci, options, tolerance_px)) return r;
+  }
+  return std::nullopt;
+}
+
+void FrameProcessor::keep_recent_frames(int n) {
+  keep_recent_ = static_cast<std::size_t>(std::max(0, n));
+  while (recent_.size() > keep_recent_) recent_.pop_back();
+}
+
+std::optional<bool> FrameProcessor::source_in(const Last& frame, std::span<const std::uint16_t> pixels,
+                                              const Eigen::Vector3d& u_eci, const AidedDetectionOptions& options,
+                                              double tolerance_px) const {
+  if (!frame.attitude_usable) return std::nullopt;
+  if (pixels.size() != static_cast<std::size_t>(K_.width) * static_cast<std::size_t>(K_.height)) return std::nullopt;
+  const auto px = K_.project(frame.R_eci_from_cam.transpose() * u_eci);
   if (!px || px->x() < 8.0 || px->y() < 8.0 || px->x() > K_.width - 9.0 || px->y() > K_.height - 9.0)
     return std::nullopt;
-  for (const auto& d : last_.detections_px) {
-    if ((d - *px).norm() <= tolerance_px + 1.0) return true;
+  // Hot pixels (fixed on the sensor, not in the sky) are not sources: this
+  // frame's lone sharp pixels and the learned map.
+  std::vector<Eigen::Vector2d> hot = frame.hot_px;
+  hot.insert(hot.end(), hot_known_px_.begin(), hot_known_px_.end());
+  const double r_hot = opt_.persistence.hot_map_radius_px;
+  const auto near_hot = [&](const Eigen::Vector2d& p) {
+    return std::any_of(hot.begin(), hot.end(), [&](const Eigen::Vector2d& h) { return (h - p).norm() < r_hot; });
+  };
+  for (const auto& d : frame.detections_px) {
+    if ((d - *px).norm() <= tolerance_px + 1.0 && !near_hot(d)) return true;
   }
   AidedDetectionOptions o = options;
-  o.min_separation_px = 0.0;
+  o.min_separation_px = r_hot;
   const auto a = detect_near_prediction(pixels, K_.width, K_.height, *px,
-                                        tolerance_px * tolerance_px * Eigen::Matrix2d::Identity(), last_.noise_dn, {}, o);
+                                        tolerance_px * tolerance_px * Eigen::Matrix2d::Identity(), frame.noise_dn, hot, o);
   return a.found || a.peaks > 1;
 }
 

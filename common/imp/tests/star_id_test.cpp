@@ -637,5 +637,56 @@ TEST(FrameProcessorBlends, ACandidateOnAStarTooFaintToIdentifyIsABlend) {
   EXPECT_LE(others_flagged, on_faint);
 }
 
+// The faint-star check of single detections looks at the frames before too
+// (FrameProcessor::source_before): a star seen in frame i, at its inertial
+// direction, is still found there after frame i + 1 (another attitude) has
+// been processed; an empty direction is not; a direction off frame i's
+// sensor cannot be checked, nor anything when no frame is kept.
+TEST(FrameProcessorFaintStars, TheFramesBeforeAreCheckedAtTheSameInertialDirection) {
+  const auto cam = nst_camera();
+  const Intrinsics k = intrinsics_of(cam);
+  const auto& frames = rendered_frames();
+  int checked = 0;
+  for (std::size_t i = 0; i + 1 < frames.size() && checked < 4; ++i) {
+    FrameProcessor p(k, nst_catalog());
+    FrameProcessor forgetful(k, nst_catalog());
+    p.keep_recent_frames(2);
+    const astro::TimeTT t0 = frame_epoch();
+    const FrameSummary a = p.process(frames[i].frame.pixels, t0);
+    (void)forgetful.process(frames[i].frame.pixels, t0);
+    if (!a.attitude_usable) continue;
+    // A star fainter than the identification catalog, away from the edges and from other stars.
+    const imaging::StarTruth* faint = nullptr;
+    for (const auto& st : frames[i].frame.stars) {
+      if (st.vmag <= kCatalogVmag || st.vmag > 7.5 || st.x_px < 60 || st.y_px < 60 || st.x_px > k.width - 60 ||
+          st.y_px > k.height - 60)
+        continue;
+      bool alone = true;
+      for (const auto& o : frames[i].frame.stars)
+        if (&o != &st && std::hypot(o.x_px - st.x_px, o.y_px - st.y_px) < 40.0) alone = false;
+      if (alone) faint = &st;
+    }
+    if (!faint) continue;
+    const Eigen::Matrix3d R_eci_from_cam = a.q_cam_from_eci.toRotationMatrix().transpose();
+    const Eigen::Vector3d u_star = (R_eci_from_cam * k.unproject({faint->x_px, faint->y_px})).normalized();
+    const Eigen::Vector3d u_empty = (R_eci_from_cam * k.unproject({faint->x_px + 25.0, faint->y_px})).normalized();
+    const Eigen::Vector3d u_off = (R_eci_from_cam * k.unproject({-200.0, faint->y_px})).normalized();
+    const AidedDetectionOptions o;
+    ASSERT_EQ(p.source_at(frames[i].frame.pixels, u_star, o), std::optional<bool>(true));
+    EXPECT_FALSE(p.source_before(u_star, o).has_value());  // nothing before frame i
+    const FrameSummary b = p.process(frames[i + 1].frame.pixels, t0.plus_seconds(60.0));
+    (void)forgetful.process(frames[i + 1].frame.pixels, t0.plus_seconds(60.0));
+    if (!b.attitude_usable) continue;
+    EXPECT_EQ(p.source_before(u_star, o), std::optional<bool>(true)) << i;
+    EXPECT_EQ(p.source_before(u_empty, o), std::optional<bool>(false)) << i;
+    if (!p.source_at(frames[i + 1].frame.pixels, u_off, o).has_value()) {
+      EXPECT_FALSE(p.source_before(u_off, o).has_value()) << i;
+    }
+    EXPECT_FALSE(forgetful.source_before(u_star, o).has_value()) << i;
+    ++checked;
+  }
+  EXPECT_EQ(checked, 4);
+}
+
 }  // namespace
 }  // namespace artms::imp

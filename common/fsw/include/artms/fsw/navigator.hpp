@@ -88,6 +88,16 @@ struct NavigatorOptions {
   double aided_max_dlambda_fraction = 0.02;  // SOD-aided SAMUS once a*dlambda 1-sigma < 2 % of range
   double direct_gate_chi2 = 9.21;            // 2 dof, 99 %: single detections of untracked targets
   double direct_max_sigma_rad = 300.0 * 4.84813681109536e-6;  // widest validity region (RSS 1-sigma) used
+  // A single detection that no later frame could check (its inertial
+  // direction off that frame's sensor, or no later frame) is fused only when
+  // its validity region was at most this wide (RSS 1-sigma). A faint star of
+  // V 6.6-9 (2.7 per deg^2 over the sky, 8.9e3 per sr; the renderer's
+  // faint-star counts) falls in the 99 % region (area pi 9.21 w^2 / 2) with
+  // probability 1.28e5 w^2: 4.3 % at 120", 27 % at 300". In IT seed 9 (orbit
+  // phase drawn) three such stars 25-31 px from SV3, in frames whose next
+  // delivered frame had turned away, were fused while its a-priori put the
+  // region ~30 px wide (docs/sod.md, "Faint stars taken for a target").
+  double direct_unverified_max_sigma_rad = 120.0 * 4.84813681109536e-6;
   // A local bearing of a target whose predicted pixel lies this close to
   // another target's is left out: within ~6 px (5 PSF sigmas of the NST)
   // the other spot's light pulls its centroid (a spot 3 x as bright: 0.2 px
@@ -202,22 +212,28 @@ class Navigator {
   // Everything queued (end of run).
   void finish(const imp::Samus& samus);
   [[nodiscard]] NavReport report(astro::TimeTT t) const;
+  [[nodiscard]] const NavigatorOptions& options() const { return opt_; }
   // SOD-aided assignment of single detections (paper: "target state
   // estimates from SOD are propagated into the current epoch to provide
   // predicted track measurements ... a validity region around the
   // prediction, computed via an unscented transform"): for every target with
   // no active bound track (a faint, rarely detected one), the candidate of
   // this frame inside the 99 % validity region of its predicted measurement,
-  // if exactly one is, is that target's. Returns (candidate index, target
-  // index) of each assignment; the caller queues the ones it confirms with
+  // if exactly one is, is that target's. Returns each assignment with the
+  // width of its validity region; the caller queues the ones it confirms with
   // add_direct (the observer first checks that the candidate is not a faint
   // star, by looking at its inertial direction in the next frame).
   // Candidates a SAMUS track took (`taken`) are skipped, and so is a
   // candidate that lies within the ambiguity distance (eps_ambig) of another
   // target's prediction.
-  std::vector<std::pair<int, int>> assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
-                                    const std::vector<int>& taken, const astro::StateVector& observer_eci,
-                                    const imp::Samus& samus);
+  struct DirectAssignment {
+    int candidate = -1;             // index in `candidates`
+    int target = -1;                // index in the uplinked a-priori
+    double region_sigma_rad = 0.0;  // the validity region's RSS 1-sigma
+  };
+  std::vector<DirectAssignment> assign_untracked(astro::TimeTT t, const std::vector<imp::Candidate>& candidates,
+                                                 const std::vector<int>& taken, const astro::StateVector& observer_eci,
+                                                 const imp::Samus& samus);
   // A single detection of target `target` (index) confirmed by the caller.
   void add_direct(astro::TimeTT t, int target, const Eigen::Vector3d& u_eci, const Eigen::Quaterniond& q_cam_from_eci,
                   double imp_sigma_rad);

@@ -98,6 +98,7 @@ class Observer {
     std::size_t measurements_released = 0;
     std::uint32_t aided_detections = 0;
     std::uint32_t direct_refused_star = 0;
+    std::uint32_t direct_refused_unverified = 0;
     std::uint32_t isl_sent = 0, isl_received = 0, isl_rejected = 0;
   };
   [[nodiscard]] const Counters& counters() const { return n_; }
@@ -108,12 +109,15 @@ class Observer {
     astro::StateVector x;
     double sigma_r = 0.0, sigma_v = 0.0;
   };
+  static constexpr int kFaintStarFramesBefore = 4;  // frames IMP keeps for the faint-star check
   struct PendingDirect {
     std::uint32_t frame_seq;
     std::int64_t t_ns;
     int target;
     imp::Candidate c;
     Eigen::Quaterniond q_cam_from_eci;
+    double region_sigma_rad = 0.0;  // its validity region's RSS 1-sigma
+    bool checked_before = false;    // a frame before saw no source at its direction
   };
   struct IslIn {
     std::int64_t t_relayed_ns = 0;
@@ -127,6 +131,9 @@ class Observer {
   void take_relays(std::vector<bus::IslBroadcast> relays, astro::TimeTT t);
   void handle_frame(const bus::CameraFrame& f, astro::TimeTT t, ObserverOutputs& out);
   void flush_imp(astro::TimeTT t, ObserverOutputs& out);
+  // A pending single detection no frame before nor the next could check:
+  // usable only from a narrow validity region; counts the refusal otherwise.
+  bool unverified_direct_usable(const PendingDirect& p);
   [[nodiscard]] bus::NavTelemetry navigation(astro::TimeTT t) const;
   void broadcast(astro::TimeTT t, const bus::NavTelemetry& nav, ObserverOutputs& out);
   // A relayed broadcast checked field by field; "" when valid.

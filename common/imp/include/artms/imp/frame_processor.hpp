@@ -168,11 +168,21 @@ class FrameProcessor {
   // Is there a source at inertial direction u_eci in the frame process()
   // took last (pixels: that frame)? A detection within tolerance_px of its
   // pixel, or a matched-filter peak there (aided detection with a
-  // tolerance_px region). nullopt: no attitude, or off the sensor. Stars do
-  // not move inertially; a target turns with its orbit (~4 deg/min), so a
-  // source seen again at the same direction a frame later is a star.
+  // tolerance_px region), hot pixels not counted (this frame's lone sharp
+  // pixels and the learned map, within hot_map_radius_px). nullopt: no
+  // attitude, or off the sensor. Stars do not move inertially; a target
+  // turns with its orbit (~4 deg/min), so a source seen again at the same
+  // direction a frame later is a star.
   [[nodiscard]] std::optional<bool> source_at(std::span<const std::uint16_t> pixels, const Eigen::Vector3d& u_eci,
                                               const AidedDetectionOptions& options, double tolerance_px = 1.0) const;
+  // The same in the frames before the last one: the most recent of the
+  // kept frames (keep_recent_frames) whose sensor holds u_eci answers;
+  // nullopt when none does (or none is kept).
+  [[nodiscard]] std::optional<bool> source_before(const Eigen::Vector3d& u_eci, const AidedDetectionOptions& options,
+                                                  double tolerance_px = 1.0) const;
+  // Keep the pixels of the last n frames with an attitude (before the one
+  // process() took last) for source_before. 0 (the default): none.
+  void keep_recent_frames(int n);
   // expected_snr: the target's forced photometry of the recent frames
   // (ForcedPhotometry); when given, the centroid 1-sigma is computed at
   // snr_for_sigma(the detection's own SNR, expected_snr) instead of the
@@ -222,7 +232,14 @@ class FrameProcessor {
     double attitude_sigma_rad = 0.0;
     Eigen::Matrix3d R_eci_from_cam = Eigen::Matrix3d::Identity();
     std::vector<Eigen::Vector2d> detections_px;
+    std::vector<Eigen::Vector2d> hot_px;  // this frame's lone sharp pixels (DetectionResult::hot_suspects)
+    std::vector<std::uint16_t> pixels;    // kept for source_before only
   } last_;
+  std::deque<Last> recent_;  // frames with an attitude before last_, most recent first
+  std::size_t keep_recent_ = 0;
+  [[nodiscard]] std::optional<bool> source_in(const Last& frame, std::span<const std::uint16_t> pixels,
+                                              const Eigen::Vector3d& u_eci, const AidedDetectionOptions& options,
+                                              double tolerance_px) const;
   std::deque<std::pair<double, Eigen::Vector3d>> aided_seen_;
   std::unordered_map<std::size_t, int> hot_counts_;     // pixel index -> frames it looked hot in
   std::vector<Eigen::Vector2d> hot_known_px_;          // pixels with hot_map_min_frames or more  // (t_s, u_eci) of earlier aided detections
