@@ -726,7 +726,15 @@ class Parser {
       if (!m.ok()) return;
       s_.force_model = dynamics::ForceModelOptions::flight_like_truth();
       if (const Val* t = m.find("truth")) parse_force_side(*t, s_.force_model);
-      if (const Val* o = m.find("onboard")) parse_force_side(*o, s_.onboard_force_model);
+      if (const Val* o = m.find("onboard")) {
+        parse_force_side(*o, s_.onboard_force_model);
+        // The seed draws the truth's density error: an onboard model with
+        // one would know the world's atmosphere to the percent.
+        if (s_.onboard_force_model.space_weather.density_error_sigma > 0.0) {
+          ctx_.error(*o, "space_weather.density_error_sigma is the world's error against its atmosphere model, "
+                         "drawn from the run's seed: set it on the truth side only");
+        }
+      }
       return;
     }
     parse_force_block(v, s_.force_model);
@@ -809,13 +817,17 @@ class Parser {
   }
 
   void parse_space_weather(const Val& v, dynamics::SpaceWeather& w) {
-    Map m(ctx_, v, {"f107_sfu", "f107_81day_sfu", "kp", "daily", "f107_daily_sigma_sfu", "kp_daily_sigma"});
+    Map m(ctx_, v,
+          {"f107_sfu", "f107_81day_sfu", "kp", "daily", "f107_daily_sigma_sfu", "kp_daily_sigma",
+           "density_error_sigma", "density_error_time_s"});
     if (!m.ok()) return;
     number_field(ctx_, m, "f107_sfu", w.f107_sfu, positive(), "sfu");
     number_field(ctx_, m, "f107_81day_sfu", w.f107_81day_sfu, positive(), "sfu");
     number_field(ctx_, m, "kp", w.kp, closed(0.0, 9.0));
     number_field(ctx_, m, "f107_daily_sigma_sfu", w.f107_daily_sigma_sfu, non_negative("0 = off"), "sfu");
     number_field(ctx_, m, "kp_daily_sigma", w.kp_daily_sigma, non_negative("0 = off"));
+    number_field(ctx_, m, "density_error_sigma", w.density_error_sigma, closed(0.0, 1.0, "0 = off"));
+    number_field(ctx_, m, "density_error_time_s", w.density_error_time_s, closed(60.0, 864000.0), "s");
     if (const Val* dv = m.find("daily")) {
       const auto list = items(ctx_, *dv, "days {f107_sfu, kp}");
       if (!list) return;

@@ -40,6 +40,8 @@ json space_weather_json(const dynamics::SpaceWeather& w) {
           {"start_tt_ns", w.start.ns_since_j2000},
           {"f107_daily_sigma_sfu", w.f107_daily_sigma_sfu},
           {"kp_daily_sigma", w.kp_daily_sigma},
+          {"density_error_sigma", w.density_error_sigma},
+          {"density_error_time_s", w.density_error_time_s},
           {"seed", w.seed}};
 }
 
@@ -52,6 +54,8 @@ dynamics::SpaceWeather space_weather_from(const json& j) {
   w.start = astro::TimeTT{j.at("start_tt_ns").get<std::int64_t>()};
   w.f107_daily_sigma_sfu = j.at("f107_daily_sigma_sfu").get<double>();
   w.kp_daily_sigma = j.at("kp_daily_sigma").get<double>();
+  w.density_error_sigma = j.at("density_error_sigma").get<double>();
+  w.density_error_time_s = j.at("density_error_time_s").get<double>();
   w.seed = j.at("seed").get<std::uint64_t>();
   return w;
 }

@@ -411,6 +411,8 @@ TEST(ScenarioLoad, SpaceWeatherAndAtmosphereKeys) {
       kp: 5.3
       f107_daily_sigma_sfu: 15
       kp_daily_sigma: 0.7
+      density_error_sigma: 0.15
+      density_error_time_s: 3600
       daily: [{f107_sfu: 230, kp: 8}, {f107_sfu: 200, kp: 6}]
   onboard: {gravity_degree: 10}
 )";
@@ -421,7 +423,9 @@ TEST(ScenarioLoad, SpaceWeatherAndAtmosphereKeys) {
   EXPECT_DOUBLE_EQ(w.kp, 5.3);
   EXPECT_DOUBLE_EQ(w.f107_daily_sigma_sfu, 15.0);
   EXPECT_DOUBLE_EQ(w.kp_daily_sigma, 0.7);
-  ASSERT_EQ(w.daily.size(), 2u);
+  EXPECT_DOUBLE_EQ(w.density_error_sigma, 0.15);
+  EXPECT_DOUBLE_EQ(w.density_error_time_s, 3600.0);
+  EXPECT_NE(s.force_model.describe().find("density model error sigma 0.15"), std::string::npos);
   EXPECT_DOUBLE_EQ(w.daily[1].kp, 6.0);
   EXPECT_DOUBLE_EQ(w.at(s.epoch.plus_seconds(90000.0)).f107_sfu, 200.0);
   EXPECT_NE(s.force_model.describe().find("2 daily values"), std::string::npos) << s.force_model.describe();
@@ -447,6 +451,15 @@ TEST(ScenarioValidation, BadSpaceWeatherAndAtmosphereValuesAreNamed) {
   expect_one("sw_daily_kp.yaml", head + "      daily: [{f107_sfu: 150}]\n", 15,
              "force_model.truth.space_weather.daily[0].kp", "missing required field");
   expect_one("sw_key.yaml", head + "      f107_sfx: 150\n", 15, "force_model.truth.space_weather.f107_sfx", "did you mean");
+  expect_one("sw_rho.yaml", head + "      density_error_sigma: 1.5\n", 15,
+             "force_model.truth.space_weather.density_error_sigma", "0 <= density_error_sigma <= 1");
+  expect_one("sw_rho_t.yaml", head + "      density_error_time_s: 10\n", 15,
+             "force_model.truth.space_weather.density_error_time_s", "60 <= density_error_time_s <= 864000 s");
+  // The world's density error drawn from the run's seed is not for the onboard model.
+  expect_one("sw_rho_onboard.yaml",
+             kValid + "force_model:\n  onboard:\n    atmosphere: jacchia-scaled-harris-priester\n"
+                      "    space_weather: {density_error_sigma: 0.1}\n",
+             14, "force_model.onboard", "truth side only");
   expect_one("atm_bad.yaml", kValid + "force_model: {truth: {atmosphere: msis}}\n", 12, "force_model.truth.atmosphere",
              "harris-priester or jacchia-scaled-harris-priester");
   // Space weather for an atmosphere that does not use it.

@@ -125,6 +125,9 @@ std::string ForceModelOptions::describe() const {
     if (w.f107_daily_sigma_sfu > 0.0 || w.kp_daily_sigma > 0.0) {
       s << ", day-to-day sigma F10.7 " << w.f107_daily_sigma_sfu << " Kp " << w.kp_daily_sigma;
     }
+    if (w.density_error_sigma > 0.0) {
+      s << ", density model error sigma " << w.density_error_sigma << " over " << w.density_error_time_s << " s";
+    }
     if (jacchia.semiannual) s << ", semi-annual";
     s << ", T_ref " << jacchia.reference_temperature_K << " K)";
   }

@@ -88,6 +88,27 @@ void SpaceWeather::validate() const {
   }
   check_sigma(f107_daily_sigma_sfu, "f107_daily_sigma_sfu");
   check_sigma(kp_daily_sigma, "kp_daily_sigma");
+  check_sigma(density_error_sigma, "density_error_sigma");
+  if (!(density_error_time_s > 0.0) || !std::isfinite(density_error_time_s)) {
+    throw std::invalid_argument("space weather density_error_time_s must be a positive finite number, got " +
+                                std::to_string(density_error_time_s));
+  }
+}
+
+std::vector<SpaceWeather::DensityErrorTerm> SpaceWeather::density_error_terms() const {
+  std::vector<DensityErrorTerm> out;
+  if (!(density_error_sigma > 0.0)) return out;
+  // Streams 0 and 1 of day_normal are the days' F10.7 and Kp (hashed at
+  // 2 day + stream); the terms are hashed 2^40 further on.
+  constexpr std::uint64_t kStream = std::uint64_t{1} << 40;
+  for (int k = 0; k < kDensityErrorTerms; ++k) {
+    const double w = day_normal(seed, k, kStream) / density_error_time_s;
+    const double z = day_normal(seed, k, kStream + 1);
+    // A uniform phase from a normal draw: its CDF, through erfc.
+    const double u = 0.5 * std::erfc(-z / std::sqrt(2.0));
+    out.push_back({w, kTwoPi * u});
+  }
+  return out;
 }
 
 SpaceWeather::Day SpaceWeather::at(astro::TimeTT t) const {
@@ -135,6 +156,7 @@ JacchiaScaledHarrisPriester::JacchiaScaledHarrisPriester(HarrisPriester table, S
                                                          JacchiaOptions options)
     : table_(std::move(table)), weather_(std::move(weather)), options_(options) {
   weather_.validate();
+  density_error_ = weather_.density_error_terms();
   if (!(options_.reference_temperature_K > 0.0) || !std::isfinite(options_.reference_temperature_K)) {
     throw std::invalid_argument("Jacchia reference_temperature_K must be a positive finite number");
   }
@@ -166,7 +188,15 @@ double JacchiaScaledHarrisPriester::density_kgpm3(astro::TimeTT t, const Vec3& r
   if (d.min_kgpm3 == 0.0) return 0.0;
   double rho = d.min_kgpm3 * temperature_ratio(exospheric_temperature_K(t, r_eci_m, r_sun_eci_m), h);
   if (options_.semiannual) rho *= jacchia71_semiannual_factor(t, h);
-  return rho;
+  return rho * density_error_factor(t);
+}
+
+double JacchiaScaledHarrisPriester::density_error_factor(astro::TimeTT t) const {
+  if (density_error_.empty()) return 1.0;
+  const double dt = astro::seconds_between(weather_.start, t);
+  double sum = 0.0;
+  for (const auto& term : density_error_) sum += std::cos(term.w_rad_per_s * dt + term.phase_rad);
+  return std::exp(weather_.density_error_sigma * std::sqrt(2.0 / static_cast<double>(density_error_.size())) * sum);
 }
 
 }  // namespace artms::dynamics

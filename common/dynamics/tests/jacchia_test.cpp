@@ -319,6 +319,62 @@ TEST(SpaceWeather, RejectsBadInputsNamingTheField) {
   w = SpaceWeather{};
   w.f107_daily_sigma_sfu = std::numeric_limits<double>::infinity();
   expect_field(w, "f107_daily_sigma_sfu");
+  w = SpaceWeather{};
+  w.density_error_sigma = -0.1;
+  expect_field(w, "density_error_sigma");
+  w = SpaceWeather{};
+  w.density_error_time_s = 0.0;
+  expect_field(w, "density_error_time_s");
+}
+
+// The density model's own error (SpaceWeather::density_error_sigma): off, the
+// density is J71's exactly; on, ln(rho_with / rho_without) is a function of
+// the time alone (every point, hence every spacecraft, sees the same), of
+// the seed (the same seed the same draw, another seed another), with the
+// asked standard deviation over 200 days and the squared-exponential
+// correlation: exp(-1/2) = 0.61 at one time scale, exp(-2) = 0.14 at two.
+// 64 features: a single draw's correlation scatters by about 1 / sqrt(2 * 64).
+TEST(SpaceWeather, DensityModelErrorIsASeededSmoothFactorOfTime) {
+  SpaceWeather w = constant_weather(170.0, 165.0, 3.0);
+  w.start = kT;
+  w.seed = 7;
+  const JacchiaScaledHarrisPriester plain(table(), w);
+  w.density_error_sigma = 0.15;
+  w.density_error_time_s = 5400.0;
+  const JacchiaScaledHarrisPriester rich(table(), w);
+  const Geometry a = geometry(20.0, 14.0, 0.3, 500e3), b = geometry(-60.0, 3.0, 0.3, 450e3);
+  const auto ln_ratio = [&](const Geometry& g, double dt) {
+    const astro::TimeTT t = kT.plus_seconds(dt);
+    const Vec3 r_ecef = g.r_m;  // the ratio does not depend on the frame: r_m serves as both
+    return std::log(rich.density_kgpm3(t, g.r_m, r_ecef, g.r_sun_m) / plain.density_kgpm3(t, g.r_m, r_ecef, g.r_sun_m));
+  };
+  EXPECT_EQ(plain.density_error_factor(kT.plus_seconds(1234.0)), 1.0);
+  EXPECT_NEAR(ln_ratio(a, 1234.0), ln_ratio(b, 1234.0), 1e-12);
+  EXPECT_NEAR(ln_ratio(a, 1234.0), std::log(rich.density_error_factor(kT.plus_seconds(1234.0))), 1e-12);
+  SpaceWeather other = w;
+  other.seed = 8;
+  const JacchiaScaledHarrisPriester rich8(table(), other), rich7(table(), w);
+  EXPECT_EQ(rich7.density_error_factor(kT.plus_seconds(5000.0)), rich.density_error_factor(kT.plus_seconds(5000.0)));
+  EXPECT_NE(rich8.density_error_factor(kT.plus_seconds(5000.0)), rich.density_error_factor(kT.plus_seconds(5000.0)));
+  // Statistics of one draw over 200 days at 60 s.
+  std::vector<double> x;
+  for (double dt = 0.0; dt < 200.0 * 86400.0; dt += 60.0) x.push_back(std::log(rich.density_error_factor(kT.plus_seconds(dt))));
+  const auto n = static_cast<double>(x.size());
+  double mean = 0.0, var = 0.0;
+  for (const double v : x) mean += v / n;
+  for (const double v : x) var += (v - mean) * (v - mean) / n;
+  const auto corr = [&](std::size_t lag) {
+    double c = 0.0;
+    for (std::size_t i = 0; i + lag < x.size(); ++i) c += (x[i] - mean) * (x[i + lag] - mean);
+    return c / static_cast<double>(x.size() - lag) / var;
+  };
+  std::printf("[ figures ] density error over 200 days: mean %.4f, sigma %.4f, correlation %.3f at 5400 s, %.3f at 10800 s\n",
+              mean, std::sqrt(var), corr(90), corr(180));
+  EXPECT_NEAR(mean, 0.0, 0.02);
+  EXPECT_NEAR(std::sqrt(var), 0.15, 0.15 * 0.05);
+  EXPECT_NEAR(corr(90), std::exp(-0.5), 0.15);
+  EXPECT_NEAR(corr(180), std::exp(-2.0), 0.15);
+  EXPECT_LT(std::abs(corr(1) - 1.0), 1e-3);  // smooth: 60 s apart, the same error
 }
 
 }  // namespace

@@ -36,6 +36,16 @@ struct SpaceWeather {
   // (seed, day): the same seed gives the same days, in any call order.
   double f107_daily_sigma_sfu = 0.0;
   double kp_daily_sigma = 0.0;
+  // The empirical model's own error against the real thermosphere, which
+  // exact solar and geomagnetic indices leave (about 15 % 1-sigma for
+  // Jacchia-class models; Montenbruck & Gill 2000, section 3.5): the
+  // density is multiplied by exp(delta(t)), delta a zero-mean stationary
+  // Gaussian process of standard deviation density_error_sigma and
+  // correlation exp(-dt^2 / (2 density_error_time_s^2)), drawn from the seed
+  // (random Fourier features) and common to every spacecraft of the run.
+  // 0: off.
+  double density_error_sigma = 0.0;
+  double density_error_time_s = 5400.0;
   std::uint64_t seed = 1;
 
   // Throws std::invalid_argument naming the field (e.g. "daily[2].kp") for
@@ -43,6 +53,16 @@ struct SpaceWeather {
   void validate() const;
   // F10.7 and Kp in force at t (the 81-day mean stays f107_81day_sfu).
   [[nodiscard]] Day at(astro::TimeTT t) const;
+  // The draw of delta(t) above: delta(t) = sigma sqrt(2 / N) sum_k
+  // cos(w_k (t - start) + phi_k), w_k ~ N(0, 1 / time_s^2), phi_k ~ U(0, 2 pi),
+  // N = kDensityErrorTerms (Rahimi & Recht 2007: the features of the
+  // squared-exponential kernel). Empty when the error is off.
+  static constexpr int kDensityErrorTerms = 64;
+  struct DensityErrorTerm {
+    double w_rad_per_s = 0.0;
+    double phase_rad = 0.0;
+  };
+  [[nodiscard]] std::vector<DensityErrorTerm> density_error_terms() const;
   friend bool operator==(const SpaceWeather&, const SpaceWeather&) = default;
 };
 
@@ -98,6 +118,8 @@ class JacchiaScaledHarrisPriester {
   // height (no semi-annual term): 1 when T_inf = T_ref.
   [[nodiscard]] double temperature_ratio(double t_inf_K, double height_m) const;
 
+  // exp(delta(t)) of SpaceWeather's density error; 1 when it is off.
+  [[nodiscard]] double density_error_factor(astro::TimeTT t) const;
   [[nodiscard]] const SpaceWeather& weather() const { return weather_; }
   [[nodiscard]] const JacchiaOptions& options() const { return options_; }
 
@@ -105,6 +127,7 @@ class JacchiaScaledHarrisPriester {
   HarrisPriester table_;
   SpaceWeather weather_;
   JacchiaOptions options_;
+  std::vector<SpaceWeather::DensityErrorTerm> density_error_;
 };
 
 }  // namespace artms::dynamics
