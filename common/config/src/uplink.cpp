@@ -54,8 +54,9 @@ dynamics::SpaceWeather space_weather_from(const json& j) {
   w.start = astro::TimeTT{j.at("start_tt_ns").get<std::int64_t>()};
   w.f107_daily_sigma_sfu = j.at("f107_daily_sigma_sfu").get<double>();
   w.kp_daily_sigma = j.at("kp_daily_sigma").get<double>();
-  w.density_error_sigma = j.at("density_error_sigma").get<double>();
-  w.density_error_time_s = j.at("density_error_time_s").get<double>();
+  // Absent from uplinks written before the key existed (run folders replayed later).
+  w.density_error_sigma = j.value("density_error_sigma", 0.0);
+  w.density_error_time_s = j.value("density_error_time_s", dynamics::SpaceWeather{}.density_error_time_s);
   w.seed = j.at("seed").get<std::uint64_t>();
   return w;
 }
