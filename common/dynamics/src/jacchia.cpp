@@ -157,6 +157,10 @@ JacchiaScaledHarrisPriester::JacchiaScaledHarrisPriester(HarrisPriester table, S
     : table_(std::move(table)), weather_(std::move(weather)), options_(options) {
   weather_.validate();
   density_error_ = weather_.density_error_terms();
+  if (!density_error_.empty()) {
+    density_error_amplitude_ =
+        weather_.density_error_sigma * std::sqrt(2.0 / static_cast<double>(density_error_.size()));
+  }
   if (!(options_.reference_temperature_K > 0.0) || !std::isfinite(options_.reference_temperature_K)) {
     throw std::invalid_argument("Jacchia reference_temperature_K must be a positive finite number");
   }
@@ -196,7 +200,7 @@ double JacchiaScaledHarrisPriester::density_error_factor(astro::TimeTT t) const 
   const double dt = astro::seconds_between(weather_.start, t);
   double sum = 0.0;
   for (const auto& term : density_error_) sum += std::cos(term.w_rad_per_s * dt + term.phase_rad);
-  return std::exp(weather_.density_error_sigma * std::sqrt(2.0 / static_cast<double>(density_error_.size())) * sum);
+  return std::exp(density_error_amplitude_ * sum);
 }
 
 }  // namespace artms::dynamics

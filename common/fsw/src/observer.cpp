@@ -383,7 +383,8 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
             }
           }
         }
-        // Held until the next frame has shown that it is not a faint star.
+        // Refused when a frame before shows a source at its inertial
+        // direction (a faint star); otherwise held for the next frame's look.
         for (const auto& a : navigator_->assign_untracked(tf, candidates, ss.taken, in.observer_eci, *samus_)) {
           const imp::Candidate& c = candidates[static_cast<std::size_t>(a.candidate)];
           // A source at the same inertial direction in a frame before is a faint star too.

@@ -65,12 +65,10 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
   last_.noise_dn = det.noise_dn;
   for (const auto& c : det.centroids) last_.detections_px.emplace_back(c.x_px, c.y_px);
   for (const std::size_t k : det.hot_suspects) {
-    last_.hot_px.emplace_back(static_cast<double>(k % static_cast<std::size_t>(K_.width)),
-                              static_cast<double>(k / static_cast<std::size_t>(K_.width)));
-    if (++hot_counts_[k] == opt_.persistence.hot_map_min_frames) {
-      hot_known_px_.emplace_back(static_cast<double>(k % static_cast<std::size_t>(K_.width)),
-                                 static_cast<double>(k / static_cast<std::size_t>(K_.width)));
-    }
+    const Eigen::Vector2d px(static_cast<double>(k % static_cast<std::size_t>(K_.width)),
+                             static_cast<double>(k / static_cast<std::size_t>(K_.width)));
+    last_.hot_px.push_back(px);
+    if (++hot_counts_[k] == opt_.persistence.hot_map_min_frames) hot_known_px_.push_back(px);
   }
   // Brightest first (Pyramid uses the first max_stars).
   std::vector<std::size_t> order(det.centroids.size());

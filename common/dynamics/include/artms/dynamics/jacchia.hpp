@@ -128,6 +128,7 @@ class JacchiaScaledHarrisPriester {
   SpaceWeather weather_;
   JacchiaOptions options_;
   std::vector<SpaceWeather::DensityErrorTerm> density_error_;
+  double density_error_amplitude_ = 0.0;  // sigma sqrt(2 / N)
 };
 
 }  // namespace artms::dynamics

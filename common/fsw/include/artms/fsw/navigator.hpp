@@ -88,9 +88,10 @@ struct NavigatorOptions {
   double aided_max_dlambda_fraction = 0.02;  // SOD-aided SAMUS once a*dlambda 1-sigma < 2 % of range
   double direct_gate_chi2 = 9.21;            // 2 dof, 99 %: single detections of untracked targets
   double direct_max_sigma_rad = 300.0 * 4.84813681109536e-6;  // widest validity region (RSS 1-sigma) used
-  // A single detection that no later frame could check (its inertial
-  // direction off that frame's sensor, or no later frame) is fused only when
-  // its validity region was at most this wide (RSS 1-sigma). A faint star of
+  // A single detection that no frame could check (its inertial direction
+  // off the sensors of the frames IMP keeps before it and of the next frame,
+  // or no next frame) is fused only when its validity region was at most
+  // this wide (RSS 1-sigma). A faint star of
   // V 6.6-9 (2.7 per deg^2 over the sky, 8.9e3 per sr; the renderer's
   // faint-star counts) falls in the 99 % region (area pi 9.21 w^2 / 2) with
   // probability 1.28e5 w^2: 4.3 % at 120", 27 % at 300". In IT seed 9 (orbit
@@ -222,7 +223,8 @@ class Navigator {
   // if exactly one is, is that target's. Returns each assignment with the
   // width of its validity region; the caller queues the ones it confirms with
   // add_direct (the observer first checks that the candidate is not a faint
-  // star, by looking at its inertial direction in the next frame).
+  // star, by looking at its inertial direction in the frames before and the
+  // next one).
   // Candidates a SAMUS track took (`taken`) are skipped, and so is a
   // candidate that lies within the ambiguity distance (eps_ambig) of another
   // target's prediction.
