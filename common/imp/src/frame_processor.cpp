@@ -389,7 +389,10 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
     return std::nullopt;
   };
   if (!last_.attitude_usable) return refuse("no attitude");
+  // Stars, the frame's own lone sharp pixels and the learned hot-pixel map
+  // are not the target.
   std::vector<Eigen::Vector2d> avoid = last_.detections_px;
+  avoid.insert(avoid.end(), last_.hot_px.begin(), last_.hot_px.end());
   avoid.insert(avoid.end(), hot_known_px_.begin(), hot_known_px_.end());
   const AidedDetection a = detect_near_prediction(pixels, K_.width, K_.height, predicted_px, cov_px2, last_.noise_dn,
                                                   avoid, options);
