@@ -526,6 +526,8 @@ static std::vector<Eigen::Vector2d> model_bearing_differences(const std::vector<
   chief.a_m = r.a_observer_m;
   const astro::QnsElements deputy = astro::qns_from_roe(chief, r.roe_mean);
   const dynamics::GveRk4Propagator prop(*opt.onboard_forces, opt.onboard_properties);
+  const dynamics::GveRk4Propagator prop_target(*opt.onboard_forces,
+                                               opt.target_properties.value_or(opt.onboard_properties));
   const astro::QnsElements o0 = dynamics::osculating_from_mean(chief, opt.j2);
   const astro::QnsElements d0 = dynamics::osculating_from_mean(deputy, opt.j2);
   std::vector<std::size_t> order(batch.size());
@@ -539,7 +541,7 @@ static std::vector<Eigen::Vector2d> model_bearing_differences(const std::vector<
     for (auto it = begin; it != end; ++it) {
       const Measurement& m = batch[*it];
       o = prop.propagate(o, tc, m.t);
-      d = prop.propagate(d, tc, m.t);
+      d = prop_target.propagate(d, tc, m.t);
       tc = m.t;
       const astro::Vec3 los_num = astro::cartesian_from_qns(d, opt.j2.gm_m3ps2).r_m - astro::cartesian_from_qns(o, opt.j2.gm_m3ps2).r_m;
       const double dt = astro::seconds_between(prior.t_est, m.t);

@@ -1172,8 +1172,24 @@ void Navigator::bind_track(int track, int k, astro::TimeTT t) {
   as.segment = h != history_.end() && !h->second.empty() ? h->second.back().segment : 1;
 }
 
+bod::Options Navigator::bod_options_for_target(int k) const {
+  bod::Options o = bod_opt_;
+  if (!o.onboard_forces || k < 0) return o;
+  // SOD propagates every target with the first target's nominal properties
+  // (where the filter is made) plus its differential ballistic state.
+  dynamics::SpacecraftProperties p = up_.onboard_properties(target_ids_.front());
+  if (filter_ && filter_->layout().ballistic && has_estimate_[static_cast<std::size_t>(k)]) {
+    const double b_nominal = p.cd * p.drag_area_m2 / p.mass_kg;
+    const double db = filter_->state()[filter_->layout().ballistic_index(k)];
+    // A drag that the estimate would make negative is left at 1 % of the nominal.
+    p.drag_area_m2 *= std::max(b_nominal + db, 0.01 * b_nominal) / b_nominal;
+  }
+  o.target_properties = p;
+  return o;
+}
+
 void Navigator::add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measurement>& batch,
-                                const bod::ObserverPrior& prior) const {
+                                const bod::ObserverPrior& prior, const bod::Options& options) const {
   const auto& f = *filter_;
   const auto& L = f.layout();
   if (L.n_time_tag == 0) return;
@@ -1189,7 +1205,7 @@ void Navigator::add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measure
     for (auto& m : shifted) {
       m.t = m.t.plus_seconds(c == 0 ? kShiftS : kDriftShift * astro::seconds_between(f.epoch(), m.t));
     }
-    const bod::Result rs = bod::solve(shifted, prior, bod_opt_);
+    const bod::Result rs = bod::solve(shifted, prior, options);
     if (!rs.usable()) throw std::runtime_error("its clock sensitivity: the shifted batch is not usable");
     const OsculatingRoe bs =
         osculating_at({prior.t_est, prior.mean, rs.roe_mean.as_vector(), rs.P_roe_mean}, prior.t_est, f.observer());
@@ -1285,7 +1301,8 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     }
     ++attempted;
     ++bod_attempts_;
-    bod::Result r = bod::solve(batch, prior, bod_opt_);
+    const bod::Options options = bod_options_for_target(bound_target);
+    bod::Result r = bod::solve(batch, prior, options);
     const std::vector<bod::Measurement>* solved = &batch;
     // A batch that no single orbit fits (the target manoeuvred, or the track
     // swapped objects, within it) is tried again on its latest orbit alone.
@@ -1296,7 +1313,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
         if (astro::seconds_between(m.t, t_est) <= orbit_s) latest.push_back(m);
       }
       if (static_cast<int>(latest.size()) >= bod_opt_.min_measurements && latest.size() < batch.size()) {
-        bod::Result again = bod::solve(latest, prior, bod_opt_);
+        bod::Result again = bod::solve(latest, prior, options);
         if (again.usable()) {
           messages_.push_back("BOD on IMP track " + std::to_string(track) + ": the " +
                               std::to_string(batch.size()) + "-bearing batch is not usable (" + r.brief() +
@@ -1350,7 +1367,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     OsculatingRoe b;
     try {
       b = osculating_at(est, t_est, f.observer());
-      add_clock_doubt(b, *solved, prior);
+      add_clock_doubt(b, *solved, prior, options);
     } catch (const std::exception& ex) {
       decided(-1, std::string("not used: ") + ex.what());
       messages_.push_back(head + r.brief() + "; not used: " + ex.what());

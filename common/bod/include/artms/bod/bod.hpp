@@ -35,6 +35,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -101,9 +102,10 @@ struct Options {
   // (onboard_forces). Its errors in a flight-like world are smaller
   // (BodStudy.DISABLED_ModelErrorFloorsWithTheCorrection: range error /
   // 1-sigma RMS 0.35 at 52 km with these floors, 0.91 with 0.3 %), but a
-  // target whose drag the onboard model misses (the world sweep's Cd x 3)
-  // biases it by 3-4.7 % of range: with 0.3 % and 0.4 m, health check 1
-  // re-initialised SOD from such a batch (docs/bod.md, "Model correction").
+  // target whose drag the correction misses (the world sweep's Cd x 3, with
+  // the observer's properties for the target) biases it by 3-4.7 % of range:
+  // with 0.3 % and 0.4 m, health check 1 re-initialised SOD from such a
+  // batch (docs/bod.md, "Model correction"; target_properties below).
   dynamics::J2Constants j2;
   // The onboard numerical force model (SOD's), or null for the paper's BOD
   // alone. When set, a usable solution is corrected for what the mean J2
@@ -114,7 +116,10 @@ struct Options {
   // [range / correction_window, range * correction_window] (docs/bod.md,
   // "Model correction"). Not owned; must outlive the call.
   const dynamics::ForceModel* onboard_forces = nullptr;
-  dynamics::SpacecraftProperties onboard_properties;  // both spacecraft's (the uplink's nominal values)
+  dynamics::SpacecraftProperties onboard_properties;  // the observer's (the uplink's nominal values)
+  // The target's, where the observer knows them (SOD's nominal with its
+  // estimated differential ballistic coefficient); else onboard_properties.
+  std::optional<dynamics::SpacecraftProperties> target_properties;
   double correction_window = 1.3;
   // Throws std::invalid_argument naming the field.
   void validate() const;

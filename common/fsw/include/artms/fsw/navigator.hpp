@@ -437,7 +437,11 @@ class Navigator {
   // estimates and that doubt to its covariance (throws when the shifted
   // batch is not usable).
   void add_clock_doubt(OsculatingRoe& b, const std::vector<bod::Measurement>& batch,
-                       const bod::ObserverPrior& prior) const;
+                       const bod::ObserverPrior& prior, const bod::Options& options) const;
+  // BOD's options for a batch of target k (-1: not known): its model
+  // correction propagates the target as SOD does, with SOD's nominal
+  // properties and its estimated differential ballistic coefficient.
+  [[nodiscard]] bod::Options bod_options_for_target(int k) const;
   // A BOD estimate at t (its mean ROE carried by the J2 STM) as osculating
   // ROE relative to the observer's osculating elements observer_osc at t
   // (what SOD estimates), the covariance through the same maps.
