@@ -426,6 +426,7 @@ TEST(ScenarioLoad, SpaceWeatherAndAtmosphereKeys) {
   EXPECT_DOUBLE_EQ(w.density_error_sigma, 0.15);
   EXPECT_DOUBLE_EQ(w.density_error_time_s, 3600.0);
   EXPECT_NE(s.force_model.describe().find("density model error sigma 0.15"), std::string::npos);
+  ASSERT_EQ(w.daily.size(), 2u);
   EXPECT_DOUBLE_EQ(w.daily[1].kp, 6.0);
   EXPECT_DOUBLE_EQ(w.at(s.epoch.plus_seconds(90000.0)).f107_sfu, 200.0);
   EXPECT_NE(s.force_model.describe().find("2 daily values"), std::string::npos) << s.force_model.describe();

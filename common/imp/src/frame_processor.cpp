@@ -347,6 +347,12 @@ void FrameProcessor::keep_recent_frames(int n) {
   while (recent_.size() > keep_recent_) recent_.pop_back();
 }
 
+std::vector<Eigen::Vector2d> FrameProcessor::hot_pixels(const Last& frame) const {
+  std::vector<Eigen::Vector2d> hot = frame.hot_px;
+  hot.insert(hot.end(), hot_known_px_.begin(), hot_known_px_.end());
+  return hot;
+}
+
 std::optional<bool> FrameProcessor::source_in(const Last& frame, std::span<const std::uint16_t> pixels,
                                               const Eigen::Vector3d& u_eci, const AidedDetectionOptions& options,
                                               double tolerance_px) const {
@@ -355,10 +361,7 @@ std::optional<bool> FrameProcessor::source_in(const Last& frame, std::span<const
   const auto px = K_.project(frame.R_eci_from_cam.transpose() * u_eci);
   if (!px || px->x() < 8.0 || px->y() < 8.0 || px->x() > K_.width - 9.0 || px->y() > K_.height - 9.0)
     return std::nullopt;
-  // Hot pixels (fixed on the sensor, not in the sky) are not sources: this
-  // frame's lone sharp pixels and the learned map.
-  std::vector<Eigen::Vector2d> hot = frame.hot_px;
-  hot.insert(hot.end(), hot_known_px_.begin(), hot_known_px_.end());
+  const std::vector<Eigen::Vector2d> hot = hot_pixels(frame);  // not sources
   const double r_hot = opt_.persistence.hot_map_radius_px;
   const auto near_hot = [&](const Eigen::Vector2d& p) {
     return std::any_of(hot.begin(), hot.end(), [&](const Eigen::Vector2d& h) { return (h - p).norm() < r_hot; });
@@ -389,11 +392,10 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
     return std::nullopt;
   };
   if (!last_.attitude_usable) return refuse("no attitude");
-  // Stars, the frame's own lone sharp pixels and the learned hot-pixel map
-  // are not the target.
+  // Stars and hot pixels are not the target.
   std::vector<Eigen::Vector2d> avoid = last_.detections_px;
-  avoid.insert(avoid.end(), last_.hot_px.begin(), last_.hot_px.end());
-  avoid.insert(avoid.end(), hot_known_px_.begin(), hot_known_px_.end());
+  const std::vector<Eigen::Vector2d> hot = hot_pixels(last_);
+  avoid.insert(avoid.end(), hot.begin(), hot.end());
   const AidedDetection a = detect_near_prediction(pixels, K_.width, K_.height, predicted_px, cov_px2, last_.noise_dn,
                                                   avoid, options);
   if (!a.found) return refuse(a.why);

@@ -240,9 +240,12 @@ class FrameProcessor {
   [[nodiscard]] std::optional<bool> source_in(const Last& frame, std::span<const std::uint16_t> pixels,
                                               const Eigen::Vector3d& u_eci, const AidedDetectionOptions& options,
                                               double tolerance_px) const;
-  std::deque<std::pair<double, Eigen::Vector3d>> aided_seen_;
+  // Hot pixels (fixed on the sensor, not in the sky) at a frame: its lone
+  // sharp pixels and the learned map.
+  [[nodiscard]] std::vector<Eigen::Vector2d> hot_pixels(const Last& frame) const;
+  std::deque<std::pair<double, Eigen::Vector3d>> aided_seen_;  // (t_s, u_eci) of earlier aided detections
   std::unordered_map<std::size_t, int> hot_counts_;     // pixel index -> frames it looked hot in
-  std::vector<Eigen::Vector2d> hot_known_px_;          // pixels with hot_map_min_frames or more  // (t_s, u_eci) of earlier aided detections
+  std::vector<Eigen::Vector2d> hot_known_px_;          // pixels with hot_map_min_frames or more
 };
 
 }  // namespace artms::imp
