@@ -522,6 +522,30 @@ bool Navigator::predict_plane(const sod::SodFilter& f, int k, const imp::Samus& 
   return samus.unscented_prediction(-1, mean, P, los_eci_of, observer, out);
 }
 
+bool Navigator::association_d2(sod::SodFilter& f, const imp::Samus& samus, const Event& e, std::vector<double>& d2,
+                               std::vector<int>* unpredicted) const {
+  // The bearing against every target's prediction, at the time the image
+  // was taken as SOD knows it (its time-tag offset): squared Mahalanobis
+  // distance in the plane, 1e6 where a target has no usable prediction.
+  astro::TimeTT t_image = e.t.plus_seconds(-time_tag_offset_at(e.t));
+  if (t_image < f.epoch()) t_image = e.t;
+  if (!f.time_update(t_image).usable) return false;
+  Eigen::Vector2d p;
+  if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(f.observer()), p)) return false;
+  const double s2 = std::pow(bearing_sigma(e.imp_sigma_rad), 2);
+  d2.assign(target_ids_.size(), 1e6);
+  for (std::size_t k = 0; k < target_ids_.size(); ++k) {
+    imp::TargetPrediction pr;
+    if (has_estimate_[k] && predict_plane(f, static_cast<int>(k), samus, pr)) {
+      const Eigen::Matrix2d S = pr.cov + s2 * Eigen::Matrix2d::Identity();
+      d2[k] = std::min((p - pr.p).dot(S.ldlt().solve(p - pr.p)), 1e6);
+    } else if (unpredicted) {
+      ++(*unpredicted)[k];
+    }
+  }
+  return true;
+}
+
 void Navigator::process(const Event& queued, const imp::Samus& samus) {
   // A local bearing queued before the own-clock check changed the time-tag
   // correction takes the new one.
@@ -574,36 +598,51 @@ void Navigator::process(const Event& queued, const imp::Samus& samus) {
     // it in a gap and comes back on SV2, 5 px away; the first bearings after
     // the join reached SV3 before the gate refused three, and in 2 of 20
     // runs SV3's estimate was then too far off for its own track to be
-    // bound for hours). It is associated again from its next bearings.
+    // bound for hours). It stays held on its target while each of its next
+    // association_min_measurements bearings passes the association's test on
+    // its own, and those are fused; the first that fails unbinds it, and it
+    // is associated again. (Unbinding every join lost the first bearings
+    // after each eclipse: IT SV3, ~12 joins in 19 h.)
     if (as.target >= 0 && e.segment != as.segment) {
-      messages_.push_back("IMP track " + std::to_string(e.track) + " joined across a gap: unbound from target " +
-                          target_ids_[static_cast<std::size_t>(as.target)] + ", associated again");
-      as = Association{};
+      as.segment = e.segment;
+      as.held = opt_.association_min_measurements;
+      messages_.push_back("IMP track " + std::to_string(e.track) + " joined across a gap: held on target " +
+                          target_ids_[static_cast<std::size_t>(as.target)] + " while its next " +
+                          std::to_string(as.held) + " bearings fit it alone");
+    }
+    if (as.target >= 0 && as.held > 0) {
+      std::vector<double> d2;
+      std::vector<int> unpredicted(target_ids_.size(), 0);
+      if (!association_d2(f, samus, e, d2, &unpredicted)) return;
+      const auto k = static_cast<std::size_t>(as.target);
+      double second = 1e30;
+      bool others_predicted = true;  // a target without a prediction could own the bearing
+      for (std::size_t j = 0; j < d2.size(); ++j) {
+        if (j == k) continue;
+        second = std::min(second, d2[j]);
+        if (unpredicted[j] > 0) others_predicted = false;
+      }
+      if (unpredicted[k] == 0 && others_predicted && d2[k] < opt_.association_max_d2 &&
+          second > opt_.association_ambiguity * d2[k]) {
+        --as.held;
+      } else {
+        char buf[240];
+        std::snprintf(buf, sizeof buf,
+                      "IMP track %d unbound from target %s after a join across a gap (d2 %.3g, next target "
+                      "%.3g): associated again",
+                      e.track, target_ids_[k].c_str(), d2[k], second);
+        messages_.push_back(buf);
+        as = Association{};
+      }
     }
     as.last = e.t;
     if (as.target < 0) {
-      // Association: this measurement against every target's prediction,
-      // at the time the image was taken as SOD knows it (its time-tag offset).
-      astro::TimeTT t_image = e.t.plus_seconds(-time_tag_offset_at(e.t));
-      if (t_image < f.epoch()) t_image = e.t;
-      if (!f.time_update(t_image).usable) return;
-      Eigen::Vector2d p;
-      if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(f.observer()), p)) return;
-      const double s2 = std::pow(bearing_sigma(e.imp_sigma_rad), 2);
+      std::vector<double> d2;
       if (as.n == 0) as.first = e.t;
       as.d2_sum.resize(target_ids_.size(), 0.0);
       as.unpredicted.resize(target_ids_.size(), 0);
-      for (std::size_t k = 0; k < target_ids_.size(); ++k) {
-        imp::TargetPrediction pr;
-        double d2 = 1e6;
-        if (has_estimate_[k] && predict_plane(f, static_cast<int>(k), samus, pr)) {
-          const Eigen::Matrix2d S = pr.cov + s2 * Eigen::Matrix2d::Identity();
-          d2 = (p - pr.p).dot(S.ldlt().solve(p - pr.p));
-        } else {
-          ++as.unpredicted[k];
-        }
-        as.d2_sum[k] += std::min(d2, 1e6);
-      }
+      if (!association_d2(f, samus, e, d2, &as.unpredicted)) return;
+      for (std::size_t k = 0; k < target_ids_.size(); ++k) as.d2_sum[k] += d2[k];
       ++as.n;
       if (as.n >= opt_.association_min_measurements) {
         std::vector<std::size_t> order(target_ids_.size());

@@ -318,7 +318,8 @@ class Navigator {
     astro::TimeTT first;  // the first bearing of the association under way
     astro::TimeTT last;
     int gated_in_row = 0;  // successive bearings of the bound track refused by the gate
-    int segment = 0;       // the track's segment when it was bound
+    int segment = 0;       // the track's segment when it was bound (or joined again)
+    int held = 0;          // bearings after a join across a gap still to fit the bound target alone
   };
 
   // A bearing of a SAMUS track kept for BOD (the latest batch_orbits orbits).
@@ -490,6 +491,12 @@ class Navigator {
   bool blended(sod::SodFilter& f, int k, astro::TimeTT t);
   // The filter's bearing 1-sigma: sod.bearing_sigma_arcsec, or IMP's own when 0.
   [[nodiscard]] double bearing_sigma(double imp_sigma_rad) const;
+  // A track bearing against every target's prediction at its image time:
+  // squared Mahalanobis distances in the tracking plane (1e6 without a
+  // prediction, counted in unpredicted when given). False when SOD cannot
+  // be predicted there.
+  bool association_d2(sod::SodFilter& f, const imp::Samus& samus, const Event& e, std::vector<double>& d2,
+                      std::vector<int>* unpredicted) const;
   // Unscented prediction of target k's tracking-plane coordinates from the
   // filter state (at the filter epoch).
   // The target's predicted tracking-plane position at the filter's epoch,
