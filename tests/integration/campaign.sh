@@ -64,6 +64,34 @@ for k, t in c["targets"].items():
         continue
     assert cm["roe"] == ["da", "dlambda", "dex", "dey", "dix", "diy"] and len(cm["ratio_to_independent"]) == 6, (k, cm)
     assert all(x >= 0 for x in cm["rms_seed_mean_z"] + cm["rms_z"]), (k, cm)
+with_directions = 0
+for k, t in c["targets"].items():
+    bd = t.get("by_direction")
+    if not bd or "mean_z2_per_principal_direction" not in bd:
+        continue
+    p, z = bd["mean_z2_per_principal_direction"], bd["mean_z2_per_roe"]
+    assert len(p) == 6 and len(z) == 6 and bd["principal_steps"] > 0, (k, bd)
+    # The six directions' squares sum to the NEES, which the covariance's ROE axes share.
+    assert all(x >= 0 for x in p + z) and sum(p) > 0, (k, bd)
+    with_directions += 1
+assert with_directions >= 1, {k: t.get("by_direction") for k, t in c["targets"].items()}
+# Oracle: per step, the principal directions' squares (numpy's eigenvectors of nav/targets.csv's
+# covariance) sum to the evaluation's NEES (C++, eval/targets.csv).
+sys.path.insert(0, os.path.join(os.environ["ARTMS_SOURCE_DIR"], "tools", "python"))
+from artms_tools.runfolder import target_nees, target_principal_errors
+import math
+checked = 0
+for s in c["seeds"]:
+    nees, pz = target_nees(f"{d}/seed_{s}"), target_principal_errors(f"{d}/seed_{s}")
+    for k, series in pz.items():
+        for t, z2 in series.items():
+            n = nees[k].get(t)
+            if n is None or not math.isfinite(n):
+                continue
+            assert abs(sum(z2) - n) <= 1e-3 + 1e-2 * n, (s, k, t, sum(z2), n)
+            checked += 1
+assert checked > 0
+print(f"principal directions: {checked} steps, their squares sum to the evaluation's NEES")
 for s in c["seeds"]:
     r = json.load(open(f"{d}/seed_{s}/campaign_run.json"))
     assert r["seed"] == s and r["span"] == {"orbits": 0.5} and len(r["scenario_sha256"]) == 64, r

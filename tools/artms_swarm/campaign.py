@@ -51,7 +51,7 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "python"))
 from artms_tools.runfolder import (ROE_NAMES, RunFolderError, observer_nees, read_summary, target_nees,  # noqa: E402
-                                   target_nis, target_normalised_errors)
+                                   target_nis, target_normalised_errors, target_principal_errors)
 
 RECORD = "campaign_run.json"
 TAIL_LINES = 20
@@ -508,6 +508,7 @@ def summarise(out, seeds, meta, failures):
     name = None
     nis = {}  # (obs, tgt) -> list over runs of {t: (cumulative nis sum, cumulative updates)}
     zs = {}   # (obs, tgt) -> list over runs of {t: [error / 1-sigma per ROE]}
+    pz = {}   # (obs, tgt) -> list over runs of {t: [(error / 1-sigma)^2 along P's principal directions]}
     windows = set()  # the runs' epoch windows (summary.json epoch.window_s), s
     phases = set()   # the runs' orbit phase windows (summary.json orbit_phase.window_deg), deg
     for s in seeds:
@@ -528,6 +529,8 @@ def summarise(out, seeds, meta, failures):
             nis.setdefault(k, []).append(since_epoch(v, e0))
         for k, v in target_normalised_errors(d).items():
             zs.setdefault(k, []).append(since_epoch(v, e0))
+        for k, v in target_principal_errors(d).items():
+            pz.setdefault(k, []).append(since_epoch(v, e0))
     R = len(seeds)
     windows = sorted(windows)
     phases = sorted(phases)
@@ -575,6 +578,7 @@ def summarise(out, seeds, meta, failures):
                 plot_nees(out, obs, tgt, orb, avg, lo, hi, start, start_med, frac, frac_med, Rt)
                 entry["nis"] = nis_entry(nis.get(key, []), t0, period or 5700.0, start, start_med)
                 entry["common_to_every_seed"] = common_mode_entry(zs.get(key, []), times, sel)
+                entry["by_direction"] = direction_entry(zs.get(key, []), pz.get(key, []), times, sel)
         entry["convergence_orbits"] = cs
         ps = per_seed.get(key, {})
         tg = [ps.get(s, {}) for s in seeds]
@@ -629,6 +633,31 @@ def common_mode_entry(runs, times, sel):
     return {"roe": list(ROE_NAMES), "rms_seed_mean_z": [float(x) for x in common],
             "rms_z": [float(x) for x in total], "ratio_to_independent": [float(x) for x in ratio],
             "note": COMMON_NOTE}
+
+
+DIRECTION_NOTE = ("Mean (error / 1-sigma)^2 over the runs and the steps after the latest convergence, per ROE "
+                  "and along the covariance's principal directions (thinnest first; nav/targets.csv's "
+                  "covariance). Each is 1 for a consistent filter. A mean NEES inside the band with directions "
+                  "well above and below 1 is a NEES that scatters more than chi2(6): the band test then fails on "
+                  "both sides.")
+
+
+def direction_entry(z_runs, p_runs, times, sel):
+    """Mean squared normalised error per ROE and per principal direction of the covariance (DIRECTION_NOTE)."""
+    import numpy as np
+    ts = [t for t, keep in zip(times, sel) if keep]
+    if not ts:
+        return None
+    out = {"roe": list(ROE_NAMES), "note": DIRECTION_NOTE}
+    z = [r[t] for r in z_runs for t in ts if t in r]
+    if z:
+        with np.errstate(invalid="ignore"):
+            out["mean_z2_per_roe"] = [float(x) for x in np.nanmean(np.array(z, dtype=float) ** 2, axis=0)]
+    p = [r[t] for r in p_runs for t in ts if t in r]
+    if p:
+        out["mean_z2_per_principal_direction"] = [float(x) for x in np.nanmean(np.array(p, dtype=float), axis=0)]
+        out["principal_steps"] = len(p)
+    return out
 
 
 def absolute_entries(out, seeds, meta, period_s):
@@ -873,6 +902,12 @@ def print_table(s, out):
             print(f"{k}: errors common to every seed, RMS of the seed-mean error/1-sigma per ROE "
                   f"({' '.join(c['roe'])}): {' '.join(f'{x:.2f}' for x in c['rms_seed_mean_z'])}; "
                   f"x {' '.join(f'{x:.1f}' for x in c['ratio_to_independent'])} what independent runs give")
+    for k, t in s["targets"].items():
+        d = t.get("by_direction") or {}
+        if d.get("mean_z2_per_principal_direction"):
+            print(f"{k}: mean (error/1-sigma)^2 along the covariance's principal directions, thinnest first: "
+                  f"{' '.join(f'{x:.2f}' for x in d['mean_z2_per_principal_direction'])}; per ROE: "
+                  f"{' '.join(f'{x:.2f}' for x in d.get('mean_z2_per_roe', []))} (1 each when consistent)")
     for fl in s["failures"]:
         print(f"failed: seed {fl['seed']}: {fl['problem']} ({os.path.join(out, fl['log'])})")
     print(f"summary: {os.path.join(out, 'campaign_summary.json')}")

@@ -159,6 +159,42 @@ def target_normalised_errors(run_dir):
     return out
 
 
+def target_principal_errors(run_dir):
+    """Each target's error along its covariance's principal directions: {(observer, target): {t_tt_ns:
+    [6 floats]}}, the squared error over the variance along each eigenvector of nav/targets.csv's ROE
+    covariance, thinnest direction first (their sum is the NEES; each is 1 on average for a consistent
+    filter). Errors from eval/targets.csv, in the covariance's units through the ratio of the two files'
+    1-sigmas (the observer's a). Empty when the run folder predates the covariance_upper column."""
+    import numpy as np
+    nav = read_csv(os.path.join(run_dir, "nav", "targets.csv"), required=("observer", "target", "t_tt_ns"))
+    if "covariance_upper" not in nav.columns:
+        return {}
+    ev = read_csv(os.path.join(run_dir, "eval", "targets.csv"),
+                  required=("observer", "target", "t_tt_ns") + tuple(f"err_a_{n}_m" for n in ROE_NAMES)
+                  + tuple(f"sigma_a_{n}_m" for n in ROE_NAMES))
+    errors = {(r["observer"], r["target"], r.int("t_tt_ns")): r for r in ev}
+    iu = np.triu_indices(6)
+    out = {}
+    for r in nav:
+        e = errors.get((r["observer"], r["target"], r.int("t_tt_ns")))
+        upper = (r["covariance_upper"] or "").split()
+        if e is None or len(upper) != 21:
+            continue
+        P = np.zeros((6, 6))
+        P[iu] = [float(x) for x in upper]
+        P = P + P.T - np.diag(np.diag(P))
+        ratio = [e.float(f"sigma_a_{n}_m") / r.float(f"sigma_{n}") for n in ROE_NAMES
+                 if r.float(f"sigma_{n}") > 0]
+        if not ratio or not np.all(np.isfinite(P)):
+            continue
+        err = np.array([e.float(f"err_a_{n}_m") for n in ROE_NAMES]) / float(np.mean(ratio))
+        w, V = np.linalg.eigh(P)
+        if not w[0] > 0:
+            continue
+        out.setdefault((r["observer"], r["target"]), {})[r.int("t_tt_ns")] = [float(x) for x in (V.T @ err) ** 2 / w]
+    return out
+
+
 def observer_nees(run_dir):
     """Absolute position NEES (3 dof) of eval/observers.csv: {observer: {t_tt_ns: nees}}; empty when the run
     folder predates the nees_pos column."""
