@@ -7,6 +7,7 @@
 # Dask LocalCluster of 2 workers on 127.0.0.1 gives byte-identical per-seed
 # summary.json files and the same campaign_summary.json; a failing seed is
 # recorded (exit code, output tail), the campaign goes on and exits 1.
+# replay_campaign.py replays the three seeds (and records a refused option).
 # Then the unit test of tools/python/artms_tools on one seed folder.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
@@ -119,6 +120,36 @@ print(f"common-error diagnostic: independent runs x {min(a):.2f}-{max(a):.2f}, s
       f"(sqrt({R}) = {math.sqrt(R):.2f})")
 PY
 for s in 1 2 3; do cp "$WORK/local/seed_$s/summary.json" "$WORK/summary_$s.json"; done
+
+# replay_campaign.py on the three seeds: every seed replayed by
+# artms-sod-replay, band statistics per target; a replay option the replay
+# refuses fails every seed: recorded, exit 1.
+REPLAY="$SRC/tools/artms_swarm/replay_campaign.py"
+"$PY" "$REPLAY" "$WORK/local" --out "$WORK/replay" --bin "$BIN" --after-orbit 0 > "$WORK/replay.out" 2> "$WORK/replay.err" \
+  || { echo "FAIL: replay_campaign exit $?"; cat "$WORK/replay.out" "$WORK/replay.err"; exit 1; }
+cat "$WORK/replay.out"
+set +e
+"$PY" "$REPLAY" "$WORK/local" --out "$WORK/replay_bad" --bin "$BIN" -- --adaptive-form bogus \
+  > "$WORK/replay_bad.out" 2> "$WORK/replay_bad.err"
+rc=$?
+set -e
+[ "$rc" = 1 ] || { echo "replay_campaign with a refused option: exit $rc, expected 1"; cat "$WORK/replay_bad.err"; exit 1; }
+"$PY" - "$WORK" <<'PY'
+import json, sys
+w = sys.argv[1]
+r = json.load(open(f"{w}/replay/replay_summary.json"))
+assert r["seeds"] == [1, 2, 3] and r["failures"] == [], r
+stats = [t for t in r["targets"].values() if t]
+assert stats, r["targets"]
+for t in stats:
+    assert t["runs"] == 3 and t["steps"] > 0 and t["mean_nees"] > 0, t
+    assert abs(t["frac_inside_band"] + t["frac_above_band"] + t["frac_below_band"] - 1.0) < 1e-9, t
+    assert len(t["mean_z2_per_roe"]) == 6 and all(z >= 0 for z in t["mean_z2_per_roe"]), t
+bad = json.load(open(f"{w}/replay_bad/replay_summary.json"))
+assert bad["seeds"] == [] and [f["seed"] for f in bad["failures"]] == [1, 2, 3], bad
+assert all(f["exit_code"] not in (0, None) and f["output_tail"] for f in bad["failures"]), bad["failures"]
+print(f"replay_campaign: {len(stats)} targets over 3 replayed seeds; a refused option: 3 failures recorded, exit 1")
+PY
 
 # 2. The same call again: every seed reused, nothing run.
 campaign again "$WORK/pse.yaml" "${common[@]}" --jobs 2 --out "$WORK/local"
