@@ -31,6 +31,9 @@ g20 = json.load(open(f"{work}/g20.json"))["windows"][0]
 rms = g20["rms_error_m"]
 assert 0.05 <= rms[0] <= 1.0 and 0.01 <= rms[4] <= 0.3, rms
 assert g20["samples"] >= 8 and len(g20["q_m2ps"]) == 6, g20
+gp = json.load(open(f"{work}/g20.json"))["gravity_periodic_roe_m"]
+assert gp[1] == 0.0 and all(abs(g - r / 2 ** 0.5) < 1e-9 for i, (g, r) in enumerate(zip(gp, rms)) if i != 1), (gp, rms)
+assert any(l.startswith("gravity_periodic_roe_m: [") for l in open(f"{work}/g20.out")), "no scenario line printed"
 print(f"same field: RMS {max(same):.2g} m; 20x20 against 10x10 after 30 min: a*ROE RMS "
       + " ".join(f"{x:.3f}" for x in rms) + " m")
 PY

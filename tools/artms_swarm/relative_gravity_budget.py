@@ -28,8 +28,11 @@ mean and true anomalies); the budget does not depend on it.
 Usage: relative_gravity_budget.py --oe a_m,e,i_deg,raan_deg,argp_deg,M_deg --roe-m=da,dl,dex,dey,dix,diy
        --epoch UTC [--full grav120] [--onboard grav10] [--windows 3,5,10,20] [--duration 1d]
        [--every 20] [--bin build/bin] [--json OUT]
-Prints per window the diagonal of Q and its eigenvalues; --json writes them
-with the full matrices.
+Prints per window the diagonal of Q and its eigenvalues, then the periodic
+term's 1-sigma per ROE (half the error's variance after the longest window,
+a*dlambda 0), as the scenario key observers[].targets[]
+{id: ..., gravity_periodic_roe_m: [...]} takes it (SCHEMA.md; SOD adds it to
+the target's reported covariance); --json writes them with the matrices.
 """
 import argparse
 import json
@@ -148,6 +151,15 @@ def main():
             print(f"{'':>7} RMS error after the window (m): " + " ".join(f"{x:.3f}" for x in np.sqrt((E ** 2).mean(0))))
             result["windows"].append({"minutes": w, "samples": len(E), "q_m2ps": Q.tolist(),
                                       "rms_error_m": np.sqrt((E ** 2).mean(axis=0)).tolist()})
+    # The periodic term's own 1-sigma: half the error's variance at the longest window (a*dlambda's part
+    # is secular and the bearings follow it: 0), as the scenario key observers[].targets[]
+    # {id, gravity_periodic_roe_m} wants it.
+    last = result["windows"][-1]
+    var = np.diag(np.array(last["q_m2ps"])) * 60.0 * last["minutes"] * 0.5
+    var[1] = 0.0
+    result["gravity_periodic_roe_m"] = [float(x) for x in np.sqrt(var)]
+    print(f"gravity_periodic_roe_m: [{', '.join(f'{x:.3f}' for x in result['gravity_periodic_roe_m'])}]"
+          f"   (half the variance after {last['minutes']} min; a*dlambda 0)")
     if a.json:
         with open(a.json, "w") as f:
             json.dump(result, f, indent=1)

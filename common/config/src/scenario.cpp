@@ -1206,7 +1206,7 @@ class Parser {
             std::array<double, 2> window{0.0, 0.0};
             std::optional<Map> tm;
             if (t.node.IsMap()) {
-              tm.emplace(ctx_, t, std::vector<std::string_view>{"id", "range_km"});
+              tm.emplace(ctx_, t, std::vector<std::string_view>{"id", "range_km", "gravity_periodic_roe_m"});
               if (!tm->ok()) continue;
               idv = tm->require("id", "a spacecraft id");
               if (!idv) continue;
@@ -1221,8 +1221,21 @@ class Parser {
                 }
               }
             }
+            std::optional<astro::Vec6> gravity_periodic;
+            if (tm) {
+              if (const Val* gv = tm->find("gravity_periodic_roe_m")) {
+                if (const auto g = read_vector<6>(ctx_, *gv, "[da, dlambda, dex, dey, dix, diy] 1-sigma times a, in m")) {
+                  if (!((*g).array() >= 0.0).all() || !((*g).array() <= 1e4).all()) {
+                    ctx_.error(*gv, "out of range: expected every 1-sigma in [0, 1e4] m");
+                  } else {
+                    gravity_periodic = *g;
+                  }
+                }
+              }
+            }
             if (auto id = read_identifier(ctx_, *idv, "a spacecraft id")) {
               check_spacecraft_ref(*id, *idv, "target");
+              if (gravity_periodic) o.target_gravity_periodic_a_roe_m[*id] = *gravity_periodic;
               if (*id == o.spacecraft) {
                 ctx_.error(*idv, "an observer is not its own target: " + quote(*id));
               } else if (std::find(o.targets.begin(), o.targets.end(), *id) != o.targets.end()) {

@@ -1,3 +1,4 @@
+#include <cmath>
 #include "artms/config/uplink.hpp"
 
 #include <algorithm>
@@ -125,6 +126,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
   }
   json outages = json::array();
   for (const auto& w : o.gnss.outages) outages.push_back({w.start.ns_since_j2000, w.end.ns_since_j2000});
+  json gravity_periodic = json::object();
+  for (const auto& [id, v] : o.target_gravity_periodic_a_roe_m) gravity_periodic[id] = {v[0], v[1], v[2], v[3], v[4], v[5]};
   const json j = {
       {"scenario", u.scenario_name},
       {"epoch_tt_ns", u.epoch.ns_since_j2000},
@@ -154,7 +157,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"sigma_velocity_mps", o.gnss.sigma_velocity_mps}, {"outages_tt_ns", outages}}},
         {"apriori_age_days", o.apriori.age_days},
         {"targets", o.targets},
-        {"target_ranges_m", o.target_ranges_m}}},
+        {"target_ranges_m", o.target_ranges_m},
+        {"target_gravity_periodic_sigma_m", gravity_periodic}}},
       {"tuning",
        {{"imp",
          {{"detection_sigma", u.tuning.imp.detection_sigma},
@@ -290,6 +294,20 @@ ObserverUplink read_uplink(const std::string& path) {
     u.observer.target_ranges_m = o.at("target_ranges_m").get<std::vector<std::array<double, 2>>>();
     if (u.observer.target_ranges_m.size() != u.observer.targets.size()) {
       throw std::runtime_error(path + ": observer.target_ranges_m needs one [min, max] per target");
+    }
+    if (o.contains("target_gravity_periodic_sigma_m")) {  // older uplinks: none
+      for (const auto& [id, v] : o.at("target_gravity_periodic_sigma_m").items()) {
+        const auto sg = v.get<std::array<double, 6>>();
+        astro::Vec6 sig;
+        for (int i = 0; i < 6; ++i) {
+          if (!(std::isfinite(sg[static_cast<std::size_t>(i)]) && sg[static_cast<std::size_t>(i)] >= 0.0)) {
+            throw std::runtime_error(path + ": observer.target_gravity_periodic_sigma_m." + id +
+                                     " must be finite and >= 0");
+          }
+          sig[i] = sg[static_cast<std::size_t>(i)];
+        }
+        u.observer.target_gravity_periodic_a_roe_m[id] = sig;
+      }
     }
     const auto& t = j.at("tuning");
     u.tuning.imp.detection_sigma = t.at("imp").at("detection_sigma").get<double>();

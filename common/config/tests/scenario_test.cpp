@@ -743,6 +743,30 @@ TEST(ScenarioValidation, Mode2WithATargetListLoads) {
   EXPECT_EQ(s.observers[0].targets, std::vector<std::string>{"SV2"});
 }
 
+// A target's gravity budget (docs/sod.md, "Unmodelled gravity in the thin
+// directions"): read per target, carried by the uplink, absent for a target
+// without one; a negative 1-sigma is named with its line.
+TEST(ScenarioValidation, TargetGravityPeriodicBudgetReachesTheUplink) {
+  const std::string path = write_file(
+      "gravity_periodic.yaml",
+      kValid + "    targets: [{id: SV2, gravity_periodic_roe_m: [0.17, 0, 0.127, 0.138, 0.051, 0.046]}]\n");
+  const Scenario s = load_scenario(path);
+  ASSERT_EQ(s.observers[0].target_gravity_periodic_a_roe_m.count("SV2"), 1u);
+  const astro::Vec6 want = (astro::Vec6() << 0.17, 0.0, 0.127, 0.138, 0.051, 0.046).finished();
+  EXPECT_EQ(s.observers[0].target_gravity_periodic_a_roe_m.at("SV2"), want);
+  const std::string up = ::testing::TempDir() + "/uplink_gravity_periodic.json";
+  write_uplink(make_uplink(s, "SV4"), up);
+  const ObserverUplink b = read_uplink(up);
+  ASSERT_EQ(b.observer.target_gravity_periodic_a_roe_m.size(), 1u);
+  EXPECT_EQ(b.observer.target_gravity_periodic_a_roe_m.at("SV2"), want);
+  EXPECT_TRUE(load_scenario(write_file("no_gravity_periodic.yaml", kValid))
+                  .observers[0]
+                  .target_gravity_periodic_a_roe_m.empty());
+  expect_one("gravity_periodic_bad.yaml",
+             kValid + "    targets: [{id: SV2, gravity_periodic_roe_m: [-0.1, 0, 0, 0, 0, 0]}]\n", 12,
+             "observers[0].targets[0].gravity_periodic_roe_m", "out of range");
+}
+
 TEST(ScenarioValidation, UnknownOrSelfTargetsAreNamed) {
   const std::string path =
       write_file("targets.yaml", kValid + "    mode: 2\n    targets: [SV9, SV4]\n  - spacecraft: SV2\n    mode: 3\n");

@@ -1744,6 +1744,13 @@ NavReport Navigator::report(astro::TimeTT t) const {
     tr.id = target_ids_[k];
     tr.roe = f.state().segment<6>(off);
     tr.P_roe = f.covariance().block<6, 6>(off, off);
+    // The onboard gravity's short-periodic error, which the bearings cannot
+    // see: in the reported uncertainty, not in the filter (docs/sod.md,
+    // "Unmodelled gravity in the thin directions").
+    if (const auto it = up_.observer.target_gravity_periodic_a_roe_m.find(tr.id);
+        it != up_.observer.target_gravity_periodic_a_roe_m.end()) {
+      tr.P_roe.diagonal() += (it->second / oe.a_m).cwiseAbs2();
+    }
     tr.local_measurements = local_[k];
     tr.remote_measurements = remote_[k];
     tr.bearing_nis_sum = nis_sum_[k];

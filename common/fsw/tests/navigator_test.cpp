@@ -211,6 +211,45 @@ std::pair<std::size_t, std::uint32_t> blend_run(bool aligned, double fx_px) {
   return {nav.blended_measurements(), nav.report(truth.t()).targets[0].local_measurements};
 }
 
+// A target's uplinked gravity budget (a*ROE 1-sigma, m) is added to its
+// reported covariance and nowhere else: the same run with and without it
+// reports the same estimates, and covariances that differ by exactly
+// diag(sigma / a)^2 for that target only.
+TEST(NavigatorReport, TheGravityBudgetWidensTheReportedCovarianceOnly) {
+  const auto run = [](bool budget) {
+    auto a_roe = starling_a_roe_m();
+    a_roe.resize(2);
+    Truth truth(kT0, observer_at_start(), a_roe);
+    std::mt19937_64 rng(5);
+    config::ObserverUplink up = uplink_at_truth(truth, rng);
+    if (budget) {
+      up.observer.target_gravity_periodic_a_roe_m["SV2"] =
+          (astro::Vec6() << 0.17, 0.0, 0.127, 0.138, 0.051, 0.046).finished();
+    }
+    Navigator nav(up, j2_forces());
+    const imp::Samus samus;
+    for (int k = 0; k <= 10; ++k) {
+      const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+      truth.advance_to(t);
+      nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
+      nav.advance(t, t, samus);
+    }
+    nav.finish(samus);
+    return nav.report(truth.t());
+  };
+  const NavReport with = run(true), without = run(false);
+  ASSERT_EQ(with.targets.size(), 2u);
+  ASSERT_EQ(with.targets[0].id, "SV2");
+  const double a = astro::qns_from_cartesian(with.x_eci).a_m;
+  const astro::Vec6 sigma = (astro::Vec6() << 0.17, 0.0, 0.127, 0.138, 0.051, 0.046).finished() / a;
+  for (std::size_t k = 0; k < 2; ++k) {
+    EXPECT_EQ(with.targets[k].roe, without.targets[k].roe);
+    const astro::Mat6 added = with.targets[k].P_roe - without.targets[k].P_roe;
+    const astro::Mat6 want = k == 0 ? astro::Mat6(sigma.cwiseAbs2().asDiagonal()) : astro::Mat6::Zero();
+    EXPECT_LT((added - want).cwiseAbs().maxCoeff(), 1e-6 * sigma.cwiseAbs2().maxCoeff()) << k;
+  }
+}
+
 TEST(NavigatorBlend, BearingsOfTargetsPredictedOnTheSameSpotAreLeftOut) {
   const auto [blended, fused] = blend_run(true, 5660.0);
   EXPECT_EQ(blended, 60u);

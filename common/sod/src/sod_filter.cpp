@@ -315,23 +315,10 @@ bool SodFilter::sigma_points(MatrixXd& X) const {
   return true;
 }
 
-void SodFilter::adapt_process_noise() {
-  if (!options_.adaptive.enabled || !pending_) {
-    pending_dxdx_.setZero();
-    pending_ = false;
-    return;
-  }
-  // docs/sod.md, "Adaptive process noise": the corrections weigh 1/tau
-  // whatever the interval; an unclamped average outside the clamp relaxes
-  // towards the rate over the time they span.
-  const AdaptiveNoiseOptions& o = options_.adaptive;
-  const double tau = o.time_constant_s, keep = std::exp(-pending_dt_s_ / tau);
-  const double floor = o.floor_factor, ceiling = o.ceiling_factor;
-  pending_dt_s_ = 0.0;
-  const bool unclamped = o.average == AdaptiveNoiseAverage::kUnclamped;
-  const int n = layout_.size();
+VectorXd SodFilter::drag_floor_rates() const {
   // The drag floor of each target (docs/sod.md, "The drag floor"), in the nominal's units.
-  VectorXd floor_add = VectorXd::Zero(n);
+  const AdaptiveNoiseOptions& o = options_.adaptive;
+  VectorXd floor_add = VectorXd::Zero(layout_.size());
   if (o.drag_density_error > 0.0 && layout_.ballistic && layout_.n_targets > 0) {
     const QnsElements obs = QnsElements::from_vector(x_.head<6>());
     const astro::StateVector xo = astro::cartesian_from_qns(obs, gm_m3ps2_);
@@ -345,6 +332,36 @@ void SodFilter::adapt_process_noise() {
       floor_add.segment<6>(layout_.target_offset(k)) = target_along_track_process_noise(obs.a_m, sigma, period_s);
     }
   }
+  return floor_add;
+}
+
+void SodFilter::adapt_process_noise() {
+  const AdaptiveNoiseOptions& o = options_.adaptive;
+  if (!o.enabled) {
+    // No adaptation: the nominal rate, at least the drag floor (a budget of
+    // the onboard model, not an adaptation).
+    pending_dxdx_.setZero();
+    pending_ = false;
+    pending_dt_s_ = 0.0;
+    if (o.drag_density_error > 0.0) {
+      q_ = q_nominal_.cwiseMax(o.floor_factor * q_nominal_ + drag_floor_rates());
+      Q_rate_ = q_.asDiagonal();
+    }
+    return;
+  }
+  if (!pending_) {
+    pending_dxdx_.setZero();
+    return;
+  }
+  // docs/sod.md, "Adaptive process noise": the corrections weigh 1/tau
+  // whatever the interval; an unclamped average outside the clamp relaxes
+  // towards the rate over the time they span.
+  const double tau = o.time_constant_s, keep = std::exp(-pending_dt_s_ / tau);
+  const double floor = o.floor_factor, ceiling = o.ceiling_factor;
+  pending_dt_s_ = 0.0;
+  const bool unclamped = o.average == AdaptiveNoiseAverage::kUnclamped;
+  const int n = layout_.size();
+  const VectorXd floor_add = drag_floor_rates();
   std::vector<char> in_block(n, 0);
   if (o.form == AdaptiveNoiseForm::kBlock) {
     std::vector<int> blocks{0};

@@ -338,7 +338,9 @@ TEST(SodProcessNoise, TargetAlongTrackNoiseThroughGaussEquations) {
 // (density error x |dB| x the onboard drag per unit B, |dB| the estimate's
 // magnitude less its own spread, sqrt(dB^2 - sigma_B^2)) in the Loewner
 // order; a target with dB = 0 gets the same noise as without the floor, and
-// so does every target when the option is 0.
+// so does every target when the option is 0. Without the adaptation the
+// floor still holds (a budget, not an adaptation): per component the nominal
+// rate, at least floor x nominal + D.
 TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   static const dynamics::ForceModel drag_forces =
       dynamics::ForceModel::load(dynamics::ForceModelOptions::parse("grav2_0,drag"), ARTMS_DATA_DIR);
@@ -350,8 +352,9 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   obs.a_m = astro::kRadiusEarth_m + 450e3;
   VectorXd x_seen;  // the state and covariance the adaptation sees: after the update at 60 s
   MatrixXd P_seen;
-  const auto run = [&](double density_error) {
+  const auto run = [&](double density_error, bool adaptive = true) {
     SodOptions o;
+    o.adaptive.enabled = adaptive;
     o.adaptive.form = AdaptiveNoiseForm::kBlock;
     o.adaptive.average = AdaptiveNoiseAverage::kUnclamped;
     o.adaptive.drag_density_error = density_error;
@@ -405,6 +408,17 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   const double diff1 = (Q.block<6, 6>(off1, off1) - Q0.block<6, 6>(off1, off1)).cwiseAbs().maxCoeff();
   const double scale1 = Q0.block<6, 6>(off1, off1).cwiseAbs().maxCoeff();
   EXPECT_LT(diff1, 1e-9 * scale1);
+  // The adaptation off (the states it sees are the same: nothing adapts before 60 s).
+  const auto fixed = run(error, false), fixed0 = run(0.0, false);
+  const MatrixXd& Qf = fixed->process_noise_rate_matrix();
+  const MatrixXd& Qf0 = fixed0->process_noise_rate_matrix();
+  const double floor = SodOptions{}.adaptive.floor_factor;
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(Qf(off0 + i, off0 + i), std::max(N[i], floor * N[i] + D[i]), 1e-9 * N.maxCoeff()) << i;
+    EXPECT_DOUBLE_EQ(Qf(off1 + i, off1 + i), N[i]) << i;   // dB = 0: the nominal
+    EXPECT_DOUBLE_EQ(Qf0(off0 + i, off0 + i), N[i]) << i;  // no floor: the nominal
+  }
+  EXPECT_GT(Qf(off0, off0), 10.0 * N[0]);  // 2 B at 450 km: the floor dominates a*da
 }
 
 // The observer's own planned 10 cm/s along-track burn (executed 3 % long):

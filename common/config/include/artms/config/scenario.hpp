@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -115,6 +116,13 @@ struct ObserverConfig {
   // samples (mode 2: how BOD tells identical unknown targets apart); {0, 0}:
   // tuning.bod.range_min_m / range_max_m.
   std::vector<std::array<double, 2>> target_ranges_m;
+  // Per target id, optional: the 1-sigma of the short-periodic error the
+  // onboard gravity field leaves in the target's osculating ROE, as a * ROE
+  // [da, dlambda, dex, dey, dix, diy] in m (a ground budget,
+  // tools/artms_swarm/relative_gravity_budget.py). The bearings cannot see
+  // it, so it is not in the filter: it is added to the target's reported
+  // covariance (docs/sod.md, "Unmodelled gravity in the thin directions").
+  std::map<std::string, astro::Vec6> target_gravity_periodic_a_roe_m;
   // Navigation mode 4: the coarse ground orbit the observer starts from (no
   // GNSS afterwards). 1-sigma of its error, as a * (quasi-nonsingular ROE of
   // the true orbit relative to the uplinked one) [da, dlambda, dex, dey, dix,

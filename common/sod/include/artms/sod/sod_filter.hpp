@@ -468,6 +468,9 @@ class SodFilter {
   // Time update to a measurement epoch; false with s.why set on failure.
   bool advance_to(TimeTT t, UpdateSummary& s);
   void adapt_process_noise();
+  // Each target's drag floor rate (docs/sod.md, "The drag floor"); zero
+  // without drag_density_error or ballistic states.
+  [[nodiscard]] Eigen::VectorXd drag_floor_rates() const;
   // Dynamics of the named auxiliary states over dt on propagated sigma points
   // Y (columns of X before the step): time-tag drift, differential drag.
   void apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) const;
