@@ -343,6 +343,9 @@ int run(int argc, char** argv) {
   app.add_option("--process-noise-scale", q_scale, "override tuning.sod.process_noise_scale")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--adaptive-process-noise", adaptive, "override tuning.sod.adaptive_process_noise (true/false)");
+  std::optional<bool> adaptive_targets;
+  app.add_option("--adaptive-targets", adaptive_targets,
+                 "override tuning.sod.adaptive_targets (true/false; false: only the observer's own rates adapt)");
   std::string adaptive_form, adaptive_average;
   app.add_option("--adaptive-form", adaptive_form, "override tuning.sod.adaptive_form")
       ->check(CLI::IsMember({"diagonal", "block"}));
@@ -391,6 +394,7 @@ int run(int argc, char** argv) {
   tuning.underweighting = underweighting.value_or(tuning.underweighting);
   tuning.underweighting_nonlinearity = underweighting_nonlinearity.value_or(tuning.underweighting_nonlinearity);
   tuning.adaptive_process_noise = adaptive.value_or(tuning.adaptive_process_noise);
+  tuning.adaptive_targets = adaptive_targets.value_or(tuning.adaptive_targets);
   tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
   tuning.drag_density_error = drag_density_error.value_or(tuning.drag_density_error);
   if (adaptive_time_constant_s && !(*adaptive_time_constant_s > 0.0))

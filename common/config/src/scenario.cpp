@@ -1417,7 +1417,7 @@ class Parser {
       Map sm(ctx_, *sv,
              {"period", "bearing_sigma_arcsec", "eps_assign", "eps_ambig",
               "max_steps_without_update", "max_large_residuals", "underweighting", "underweighting_nonlinearity",
-              "adaptive_process_noise", "adaptive_form", "adaptive_average", "adaptive_time_constant", "drag_density_error", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
+              "adaptive_process_noise", "adaptive_targets", "adaptive_form", "adaptive_average", "adaptive_time_constant", "drag_density_error", "process_noise_scale", "nis_window", "nis_false_alarm", "time_tag",
               "ballistic", "observer_acceleration_sigma_mps2", "target_lines"});
       if (sm.ok()) {
         duration_field(ctx_, sm, "period", t.sod.period_s, false);
@@ -1440,6 +1440,7 @@ class Parser {
         number_field(ctx_, sm, "underweighting_nonlinearity", t.sod.underweighting_nonlinearity,
                      non_negative("0 = underweight while the predicted spread exceeds R"));
         bool_field(ctx_, sm, "adaptive_process_noise", t.sod.adaptive_process_noise);
+        bool_field(ctx_, sm, "adaptive_targets", t.sod.adaptive_targets);
         using F = SodTuning::AdaptiveForm;
         using A = SodTuning::AdaptiveAverage;
         if (const Val* fv = sm.find("adaptive_form")) {

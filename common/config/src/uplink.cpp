@@ -185,6 +185,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"underweighting", u.tuning.sod.underweighting},
           {"underweighting_nonlinearity", u.tuning.sod.underweighting_nonlinearity},
           {"adaptive_process_noise", u.tuning.sod.adaptive_process_noise},
+          {"adaptive_targets", u.tuning.sod.adaptive_targets},
           {"adaptive_form", u.tuning.sod.adaptive_form == SodTuning::AdaptiveForm::kBlock ? "block" : "diagonal"},
           {"adaptive_average",
            u.tuning.sod.adaptive_average == SodTuning::AdaptiveAverage::kUnclamped ? "unclamped" : "clamped"},
@@ -341,6 +342,7 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.underweighting = sod.at("underweighting").get<double>();
     u.tuning.sod.underweighting_nonlinearity = sod.value("underweighting_nonlinearity", 0.0);  // older uplinks: off
     u.tuning.sod.adaptive_process_noise = sod.at("adaptive_process_noise").get<bool>();
+    u.tuning.sod.adaptive_targets = sod.value("adaptive_targets", true);  // older uplinks: the default
     const std::string form = sod.value("adaptive_form", std::string("diagonal"));  // older uplinks: the default
     if (form == "diagonal") u.tuning.sod.adaptive_form = SodTuning::AdaptiveForm::kDiagonal;
     else if (form == "block") u.tuning.sod.adaptive_form = SodTuning::AdaptiveForm::kBlock;

@@ -767,6 +767,18 @@ TEST(ScenarioValidation, TargetGravityPeriodicBudgetReachesTheUplink) {
              "observers[0].targets[0].gravity_periodic_roe_m", "out of range");
 }
 
+TEST(ScenarioLoad, AdaptiveTargetsDefaultsOnAndReachesTheUplink) {
+  EXPECT_TRUE(load_scenario(write_file("adaptive_targets_default.yaml", kValid)).tuning.sod.adaptive_targets);
+  const Scenario s =
+      load_scenario(write_file("adaptive_targets.yaml", kValid + "tuning:\n  sod: {adaptive_targets: false}\n"));
+  EXPECT_FALSE(s.tuning.sod.adaptive_targets);
+  const std::string up = ::testing::TempDir() + "/uplink_adaptive_targets.json";
+  write_uplink(make_uplink(s, "SV4"), up);
+  EXPECT_FALSE(read_uplink(up).tuning.sod.adaptive_targets);
+  expect_one("adaptive_targets_bad.yaml", kValid + "tuning:\n  sod: {adaptive_targets: 3}\n", 13,
+             "tuning.sod.adaptive_targets", "");
+}
+
 TEST(ScenarioValidation, UnknownOrSelfTargetsAreNamed) {
   const std::string path =
       write_file("targets.yaml", kValid + "    mode: 2\n    targets: [SV9, SV4]\n  - spacecraft: SV2\n    mode: 3\n");

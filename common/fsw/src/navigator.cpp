@@ -95,6 +95,7 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   o.bearing_underweighting = t.underweighting;
   o.bearing_underweighting_nonlinearity = t.underweighting_nonlinearity;
   o.adaptive.enabled = t.adaptive_process_noise;
+  o.adaptive.targets = t.adaptive_targets;
   o.adaptive.form = t.adaptive_form == config::SodTuning::AdaptiveForm::kBlock ? sod::AdaptiveNoiseForm::kBlock
                                                                                 : sod::AdaptiveNoiseForm::kDiagonal;
   o.adaptive.average = t.adaptive_average == config::SodTuning::AdaptiveAverage::kUnclamped

@@ -365,7 +365,9 @@ void SodFilter::adapt_process_noise() {
   std::vector<char> in_block(n, 0);
   if (o.form == AdaptiveNoiseForm::kBlock) {
     std::vector<int> blocks{0};
-    for (int k = 0; k < layout_.n_targets; ++k) blocks.push_back(layout_.target_offset(k));
+    if (o.targets) {
+      for (int k = 0; k < layout_.n_targets; ++k) blocks.push_back(layout_.target_offset(k));
+    }
     for (const int off : blocks) {
       const Vec6 nominal = q_nominal_.segment<6>(off);
       if (!(nominal.minCoeff() > 0.0)) continue;  // adapts per component below
@@ -401,8 +403,18 @@ void SodFilter::adapt_process_noise() {
       for (int i = off; i < off + 6; ++i) in_block[i] = 1;
     }
   }
+  std::vector<char> on_budget(n, 0);  // target components that do not adapt
+  if (!o.targets) {
+    for (int k = 0; k < layout_.n_targets; ++k) {
+      for (int i = layout_.target_offset(k); i < layout_.target_offset(k) + 6; ++i) on_budget[i] = 1;
+    }
+  }
   for (int i = 0; i < n; ++i) {
     if (in_block[i]) continue;
+    if (on_budget[i]) {
+      Q_rate_(i, i) = Q_average_(i, i) = std::max(q_nominal_[i], floor * q_nominal_[i] + floor_add[i]);
+      continue;
+    }
     const double a_prev = unclamped ? Q_average_(i, i) : Q_rate_(i, i);
     const double a = keep * a_prev + (1.0 - keep) * Q_rate_(i, i) + pending_dxdx_(i, i) / tau;
     const double lo = floor * q_nominal_[i] + floor_add[i];

@@ -352,9 +352,10 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   obs.a_m = astro::kRadiusEarth_m + 450e3;
   VectorXd x_seen;  // the state and covariance the adaptation sees: after the update at 60 s
   MatrixXd P_seen;
-  const auto run = [&](double density_error, bool adaptive = true) {
+  const auto run = [&](double density_error, bool adaptive = true, bool targets = true) {
     SodOptions o;
     o.adaptive.enabled = adaptive;
+    o.adaptive.targets = targets;
     o.adaptive.form = AdaptiveNoiseForm::kBlock;
     o.adaptive.average = AdaptiveNoiseAverage::kUnclamped;
     o.adaptive.drag_density_error = density_error;
@@ -419,6 +420,14 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
     EXPECT_DOUBLE_EQ(Qf0(off0 + i, off0 + i), N[i]) << i;  // no floor: the nominal
   }
   EXPECT_GT(Qf(off0, off0), 10.0 * N[0]);  // 2 B at 450 km: the floor dominates a*da
+  // Only the observer adapting (adaptive.targets false): the targets as without the adaptation, the
+  // observer's block as with it (the blocks adapt separately).
+  const auto obs_only = run(error, true, false);
+  const MatrixXd& Qo = obs_only->process_noise_rate_matrix();
+  EXPECT_EQ(Mat6(Qo.block<6, 6>(off0, off0)), Mat6(Qf.block<6, 6>(off0, off0)));
+  EXPECT_EQ(Mat6(Qo.block<6, 6>(off1, off1)), Mat6(Qf.block<6, 6>(off1, off1)));
+  EXPECT_EQ(Mat6(Qo.topLeftCorner<6, 6>()), Mat6(Q.topLeftCorner<6, 6>()));
+  EXPECT_NE(Mat6(Qo.topLeftCorner<6, 6>()), Mat6(Qf.topLeftCorner<6, 6>()));  // the observer did adapt
 }
 
 // The observer's own planned 10 cm/s along-track burn (executed 3 % long):

@@ -204,6 +204,7 @@ struct SodTuning {
   // trace P_zz > trace R.
   double underweighting_nonlinearity = 0.0;
   bool adaptive_process_noise = true;  // paper: adaptive process noise estimation
+  bool adaptive_targets = true;        // false: only the observer's own rates adapt (docs/sod.md)
   // Which entries adapt, and whether the recursion runs on the clamped rate
   // (sod::AdaptiveNoiseOptions, docs/sod.md "Adaptive process noise").
   enum class AdaptiveForm { kDiagonal, kBlock };

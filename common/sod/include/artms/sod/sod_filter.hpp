@@ -58,6 +58,11 @@ enum class AdaptiveNoiseAverage {
 };
 struct AdaptiveNoiseOptions {
   bool enabled = true;
+  // false: only the observer's own block (and the auxiliary states) adapt;
+  // each target keeps its nominal rate, at least the drag floor. The
+  // corrections estimate the observer's rate (GNSS fixes it every step) but
+  // not a target's (docs/sod.md, "What one adaptation knows").
+  bool targets = true;
   AdaptiveNoiseForm form = AdaptiveNoiseForm::kDiagonal;
   AdaptiveNoiseAverage average = AdaptiveNoiseAverage::kClamped;
   // tau, s: the corrections' gain 1/tau; e^(-60/tau) = 0.95, the former
