@@ -1,4 +1,3 @@
-#include <cmath>
 #include "artms/config/uplink.hpp"
 
 #include <algorithm>
@@ -299,13 +298,10 @@ ObserverUplink read_uplink(const std::string& path) {
     if (o.contains("target_gravity_periodic_sigma_m")) {  // older uplinks: none
       for (const auto& [id, v] : o.at("target_gravity_periodic_sigma_m").items()) {
         const auto sg = v.get<std::array<double, 6>>();
-        astro::Vec6 sig;
-        for (int i = 0; i < 6; ++i) {
-          if (!(std::isfinite(sg[static_cast<std::size_t>(i)]) && sg[static_cast<std::size_t>(i)] >= 0.0)) {
-            throw std::runtime_error(path + ": observer.target_gravity_periodic_sigma_m." + id +
-                                     " must be finite and >= 0");
-          }
-          sig[i] = sg[static_cast<std::size_t>(i)];
+        const astro::Vec6 sig = Eigen::Map<const astro::Vec6>(sg.data());
+        if (!sig.allFinite() || (sig.array() < 0.0).any()) {
+          throw std::runtime_error(path + ": observer.target_gravity_periodic_sigma_m." + id +
+                                   " must be finite and >= 0");
         }
         u.observer.target_gravity_periodic_a_roe_m[id] = sig;
       }

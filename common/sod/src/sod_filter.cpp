@@ -337,31 +337,32 @@ VectorXd SodFilter::drag_floor_rates() const {
 
 void SodFilter::adapt_process_noise() {
   const AdaptiveNoiseOptions& o = options_.adaptive;
+  if (o.enabled && !pending_) {
+    pending_dxdx_.setZero();
+    return;
+  }
+  const double floor = o.floor_factor, ceiling = o.ceiling_factor;
+  const VectorXd floor_add = drag_floor_rates();
+  // A rate that does not adapt: the nominal, at least the drag floor (a
+  // budget of the onboard model, not an adaptation).
+  const VectorXd budget = q_nominal_.cwiseMax(floor * q_nominal_ + floor_add);
   if (!o.enabled) {
-    // No adaptation: the nominal rate, at least the drag floor (a budget of
-    // the onboard model, not an adaptation).
     pending_dxdx_.setZero();
     pending_ = false;
     pending_dt_s_ = 0.0;
     if (o.drag_density_error > 0.0) {
-      q_ = q_nominal_.cwiseMax(o.floor_factor * q_nominal_ + drag_floor_rates());
+      q_ = budget;
       Q_rate_ = q_.asDiagonal();
     }
-    return;
-  }
-  if (!pending_) {
-    pending_dxdx_.setZero();
     return;
   }
   // docs/sod.md, "Adaptive process noise": the corrections weigh 1/tau
   // whatever the interval; an unclamped average outside the clamp relaxes
   // towards the rate over the time they span.
   const double tau = o.time_constant_s, keep = std::exp(-pending_dt_s_ / tau);
-  const double floor = o.floor_factor, ceiling = o.ceiling_factor;
   pending_dt_s_ = 0.0;
   const bool unclamped = o.average == AdaptiveNoiseAverage::kUnclamped;
   const int n = layout_.size();
-  const VectorXd floor_add = drag_floor_rates();
   std::vector<char> in_block(n, 0);
   if (o.form == AdaptiveNoiseForm::kBlock) {
     std::vector<int> blocks{0};
@@ -412,7 +413,7 @@ void SodFilter::adapt_process_noise() {
   for (int i = 0; i < n; ++i) {
     if (in_block[i]) continue;
     if (on_budget[i]) {
-      Q_rate_(i, i) = Q_average_(i, i) = std::max(q_nominal_[i], floor * q_nominal_[i] + floor_add[i]);
+      Q_rate_(i, i) = Q_average_(i, i) = budget[i];
       continue;
     }
     const double a_prev = unclamped ? Q_average_(i, i) : Q_rate_(i, i);
