@@ -528,16 +528,26 @@ bool Navigator::association_d2(sod::SodFilter& f, const imp::Samus& samus, const
   // The bearing against every target's prediction, at the time the image
   // was taken as SOD knows it (its time-tag offset): squared Mahalanobis
   // distance in the plane, 1e6 where a target has no usable prediction.
+  // The filter itself moves to the bearing's time only: an image time later
+  // than that (an offset estimated below zero) would put the next event of
+  // the same time (the other target's bearing in this frame, the GNSS fix
+  // of the step) behind the filter's epoch. A copy predicts to the image time.
   astro::TimeTT t_image = e.t.plus_seconds(-time_tag_offset_at(e.t));
   if (t_image < f.epoch()) t_image = e.t;
-  if (!f.time_update(t_image).usable) return false;
+  if (!f.time_update(e.t).usable) return false;
+  std::optional<sod::SodFilter> at_image;
+  if (t_image != e.t) {
+    at_image.emplace(f);
+    if (!at_image->time_update(t_image).usable) return false;
+  }
+  const sod::SodFilter& g = at_image ? *at_image : f;
   Eigen::Vector2d p;
-  if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(f.observer()), p)) return false;
+  if (!samus.plane_coordinates(e.u_eci, astro::cartesian_from_qns(g.observer()), p)) return false;
   const double s2 = std::pow(bearing_sigma(e.imp_sigma_rad), 2);
   d2.assign(target_ids_.size(), 1e6);
   for (std::size_t k = 0; k < target_ids_.size(); ++k) {
     imp::TargetPrediction pr;
-    if (has_estimate_[k] && predict_plane(f, static_cast<int>(k), samus, pr)) {
+    if (has_estimate_[k] && predict_plane(g, static_cast<int>(k), samus, pr)) {
       const Eigen::Matrix2d S = pr.cov + s2 * Eigen::Matrix2d::Identity();
       d2[k] = std::min((p - pr.p).dot(S.ldlt().solve(p - pr.p)), 1e6);
     } else if (unpredicted) {
@@ -579,7 +589,7 @@ void Navigator::process(const Event& queued, const imp::Samus& samus) {
   }
   auto& f = *filter_;
   if (e.t < f.epoch()) {
-    if (e.kind == EventKind::kTrackBearing) ++late_;
+    if (e.kind == EventKind::kTrackBearing || e.kind == EventKind::kDirectBearing) ++late_;
     return;
   }
   if (e.kind == EventKind::kGnss) {
@@ -592,6 +602,7 @@ void Navigator::process(const Event& queued, const imp::Samus& samus) {
     const auto s = f.update_bearing(m);
     record_nis(e.track, s);
     if (s.usable) ++local_[static_cast<std::size_t>(e.track)];
+    else ++refused_;
   } else {
     auto& as = tracks_[e.track];
     // A track that SAMUS joined across a gap since it was bound may have
@@ -638,6 +649,7 @@ void Navigator::process(const Event& queued, const imp::Samus& samus) {
     }
     as.last = e.t;
     if (as.target < 0) {
+      ++association_;
       std::vector<double> d2;
       if (as.n == 0) as.first = e.t;
       as.d2_sum.resize(target_ids_.size(), 0.0);
@@ -717,6 +729,7 @@ void Navigator::process(const Event& queued, const imp::Samus& samus) {
     const auto s = f.update_bearing(m);
     record_nis(as.target, s);
     if (s.usable) ++local_[static_cast<std::size_t>(as.target)];
+    else ++refused_;
     // A bound track whose bearings the gate keeps refusing has most likely
     // swapped to another object (two targets crossing a few pixels apart):
     // it is unbound and goes through the association again, before the

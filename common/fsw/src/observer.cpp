@@ -599,11 +599,20 @@ ObserverOutputs Observer::step(const bus::Tick& tick, ObserverInputs in) {
                        std::to_string(navigator_->remote_repeated()) + " repeats dropped; " +
                        std::to_string(navigator_->blended_measurements()) +
                        " local bearings left out, another target predicted within " +
-                       std::to_string(static_cast<int>(NavigatorOptions{}.blend_separation_px)) + " px");
+                       std::to_string(static_cast<int>(NavigatorOptions{}.blend_separation_px)) + " px; " +
+                       std::to_string(navigator_->refused_measurements()) + " refused by the gate; " +
+                       std::to_string(navigator_->association_measurements()) +
+                       " of tracks not bound to a target (association only)");
     } else {
-      const std::int64_t safe = frame_times_ns_.size() > static_cast<std::size_t>(n_scan_)
-                                    ? frame_times_ns_[frame_times_ns_.size() - 1 - static_cast<std::size_t>(n_scan_)]
-                                    : up_.epoch.ns_since_j2000;
+      // Decided up to the frame n_scan frames back, and not past the oldest
+      // measurement SAMUS may still release (a tentative track's first: a
+      // target found again after an eclipse); at most max_lag_s behind.
+      std::int64_t safe = frame_times_ns_.size() > static_cast<std::size_t>(n_scan_)
+                              ? frame_times_ns_[frame_times_ns_.size() - 1 - static_cast<std::size_t>(n_scan_)]
+                              : up_.epoch.ns_since_j2000;
+      if (const auto held = samus_ ? samus_->oldest_undecided() : std::nullopt) {
+        safe = std::min(safe, held->plus_seconds(navigator_->time_tag_correction_s()).ns_since_j2000 - 1);
+      }
       navigator_->advance(astro::TimeTT{safe}, t, *samus_);
     }
     drain_navigator(t.ns_since_j2000);

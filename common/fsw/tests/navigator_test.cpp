@@ -571,3 +571,65 @@ TEST(NavigatorTimeTags, UntrackedTargetsArePredictedAtTheImageTimeNotTheTag) {
 
 }  // namespace
 }  // namespace artms::fsw
+
+// Two bearings of one frame with the camera clock estimated below zero (the
+// image later than its tag): the first, of a track not bound to a target,
+// is associated against the predictions at the image time; the filter itself
+// must not move past the tag, or the second (a single detection of target 0
+// in the same frame) is behind its epoch and lost as late. Before the fix
+// every direct bearing after the estimate turned negative was lost.
+namespace artms::fsw {
+namespace {
+
+TEST(NavigatorTimeTags, TheAssociationAtTheImageTimeLosesNoBearingOfTheSameFrame) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(1);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng(3);
+  config::ObserverUplink up = uplink_at_truth(truth, rng);
+  up.tuning.sod.time_tag = config::SodTuning::TimeTagEstimation::kOffset;
+  up.tuning.sod.time_tag_sigma_s = 0.5;
+  Navigator nav(up, j2_forces());
+  imp::Samus samus;
+  imp::TrackerInput in;
+  in.observer_eci = truth.observer_eci();
+  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
+  samus.process(in, {});  // sets SAMUS's tracking plane
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double s = 3 * astro::kArcsecToRad;
+  std::vector<std::string> messages;
+  const int n = 90;
+  for (int k = 0; k <= n; ++k) {
+    const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+    truth.advance_to(t);
+    nav.add_gnss(truth.gnss(0.0, 0.0, false, nullptr));
+    if (k > 0) {
+      truth.advance_to(t.plus_seconds(0.3));  // the image, 0.3 s after its tag
+      const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
+      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+      // Track 7: an object a degree away, never bound (it fits no target).
+      nav.add_bearing(t, 7, (u + 0.0175 * a).normalized(), Eigen::Quaterniond::Identity(), s, 1);
+      nav.add_direct(t, 0, (u + s * g(rng) * a + s * g(rng) * b).normalized(), Eigen::Quaterniond::Identity(), s);
+    }
+    nav.advance(t, t, samus);
+    for (auto& m : nav.take_messages()) messages.push_back(std::move(m));
+  }
+  nav.finish(samus);
+  for (auto& m : nav.take_messages()) messages.push_back(std::move(m));
+  // The clock was estimated below zero (what puts the image time after the tag).
+  double offset_s = 0.0;
+  for (const auto& m : messages) {
+    const auto p = m.find("time-tag offset ");
+    if (p != std::string::npos) offset_s = std::stod(m.substr(p + 16));
+  }
+  std::printf("time-tag offset estimated at %.4f s; %zu late, %zu association only, target 0 fused %u\n", offset_s,
+              nav.late_measurements(), nav.association_measurements(),
+              nav.report(truth.t()).targets[0].local_measurements);
+  EXPECT_LT(offset_s, -0.05);
+  EXPECT_EQ(nav.late_measurements(), 0u);
+  EXPECT_EQ(nav.association_measurements(), static_cast<std::size_t>(n));
+  EXPECT_EQ(nav.report(truth.t()).targets[0].local_measurements, static_cast<std::uint32_t>(n));
+}
+
+}  // namespace
+}  // namespace artms::fsw

@@ -547,6 +547,21 @@ TrackInfo Samus::info_of(const Family& f) const {
     return t;
 }
 
+std::optional<astro::TimeTT> Samus::oldest_undecided() const {
+  std::optional<astro::TimeTT> oldest;
+  const auto take = [&](const astro::TimeTT& t) {
+    if (!oldest || t < *oldest) oldest = t;
+  };
+  for (const auto& f : families_) {
+    if (f.lost) continue;
+    for (const auto& b : f.branches) {
+      if (f.released < b.meas.size()) take(b.meas[f.released].t);
+    }
+  }
+  for (const auto& p : unassigned_) take(p.m.t);
+  return oldest;
+}
+
 std::vector<TrackInfo> Samus::tracks() const {
   std::vector<TrackInfo> out = retired_;
   for (const auto& f : families_) {

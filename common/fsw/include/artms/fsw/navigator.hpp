@@ -261,9 +261,16 @@ class Navigator {
   // Events for the event log, drained by the caller.
   std::vector<std::string> take_messages() { return std::exchange(messages_, {}); }
   [[nodiscard]] std::size_t late_measurements() const { return late_; }
+  // Added to a local bearing's time tag (the uplinked correction and what the
+  // own-clock check found).
+  [[nodiscard]] double time_tag_correction_s() const { return time_tag_correction_s_; }
   // Local bearings left out because another target was predicted within
   // NavigatorOptions::blend_separation_px.
   [[nodiscard]] std::size_t blended_measurements() const { return blended_; }
+  // Local bearings the gate refused, and those of tracks not bound to a
+  // target (they served the association only).
+  [[nodiscard]] std::size_t refused_measurements() const { return refused_; }
+  [[nodiscard]] std::size_t association_measurements() const { return association_; }
   [[nodiscard]] bool initialised() const { return filter_.has_value(); }
   [[nodiscard]] std::size_t bod_attempts() const { return bod_attempts_; }
   // Every BOD attempt since the last call, for telemetry (bod/<observer>.csv).
@@ -367,6 +374,8 @@ class Navigator {
   std::vector<std::uint32_t> local_;
   std::size_t late_ = 0;
   std::size_t blended_ = 0;
+  std::size_t refused_ = 0;
+  std::size_t association_ = 0;
   std::size_t remote_broadcasts_ = 0;
   bool fuse_remote_ = false;             // navigation modes 3 and 4
   bool angles_only_ = false;             // navigation mode 4: no GNSS, the absolute orbit from bearings

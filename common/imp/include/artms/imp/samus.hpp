@@ -53,6 +53,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -144,6 +145,11 @@ class Samus {
   // End of data: releases every pending measurement of confirmed tracks.
   std::vector<TrackedMeasurement> flush();
   [[nodiscard]] std::vector<TrackInfo> tracks() const;
+  // The time tag of the oldest measurement a later frame may still release:
+  // the first undecided one of every active track (a tentative track's
+  // first), and the initiation pool's oldest candidate (it may start a track
+  // whose first measurements it is). nullopt when nothing is held.
+  [[nodiscard]] std::optional<astro::TimeTT> oldest_undecided() const;
   // Tracking-plane coordinates of a line of sight (ECI) for an observer state;
   // false when the plane is not set yet or the direction is behind it.
   bool plane_coordinates(const Eigen::Vector3d& u_eci, const astro::StateVector& observer_eci,
