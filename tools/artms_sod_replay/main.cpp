@@ -69,6 +69,47 @@ std::map<std::int64_t, std::map<std::string, astro::StateVector>> read_truth(con
   return out;
 }
 
+// --gravity-periodic-roe-m: the uplink's budgets, replaced per target by
+// "ID=da,dlambda,dex,dey,dix,diy" (a*ROE metres, each in [0, 1e4] as the
+// scenario key), or all dropped by "none".
+std::map<std::string, Vec6> gravity_periodic_budgets(const std::map<std::string, astro::Vec6>& uplinked,
+                                                     const std::vector<std::string>& args,
+                                                     const std::vector<std::string>& ids) {
+  std::map<std::string, Vec6> out(uplinked.begin(), uplinked.end());
+  for (const auto& arg : args) {
+    if (arg == "none") {
+      if (args.size() != 1) throw std::runtime_error("--gravity-periodic-roe-m none: given with other entries");
+      out.clear();
+      continue;
+    }
+    const auto eq = arg.find('=');
+    const std::string id = arg.substr(0, eq);
+    if (eq == std::string::npos || std::find(ids.begin(), ids.end(), id) == ids.end()) {
+      throw std::runtime_error("--gravity-periodic-roe-m " + arg + ": expected ID=da,dlambda,dex,dey,dix,diy with ID one "
+                               "of the observer's targets");
+    }
+    std::stringstream ss(arg.substr(eq + 1));
+    Vec6 v;
+    std::string item;
+    int k = 0;
+    while (std::getline(ss, item, ',')) {
+      std::size_t used = 0;
+      double x = std::nan("");
+      try {
+        x = std::stod(item, &used);
+      } catch (const std::exception&) {
+      }
+      if (k >= 6 || used != item.size() || !(x >= 0.0 && x <= 1e4)) {
+        throw std::runtime_error("--gravity-periodic-roe-m " + arg + ": six numbers in [0, 1e4] m expected");
+      }
+      v[k++] = x;
+    }
+    if (k != 6) throw std::runtime_error("--gravity-periodic-roe-m " + arg + ": six numbers in [0, 1e4] m expected");
+    out[id] = v;
+  }
+  return out;
+}
+
 struct Bearing {
   int target;
   Eigen::Vector3d u_eci;
@@ -380,6 +421,12 @@ int run(int argc, char** argv) {
                  "navigator's telemetry reports it while its filter lags the clock (at most max_lag_s, 600 s)")
       ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
+  std::vector<std::string> gravity_periodic_args;
+  app.add_option("--gravity-periodic-roe-m", gravity_periodic_args,
+                 "modes 1 and 3: the onboard gravity's short-periodic 1-sigma per target, added to the reported "
+                 "covariance as the navigator adds the uplink's (observers[].targets[].gravity_periodic_roe_m): "
+                 "ID=da,dlambda,dex,dey,dix,diy in a*ROE metres, repeatable, replacing the uplink's for that "
+                 "target; 'none' drops every target's (default: the uplink's)");
   app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES");
   CLI11_PARSE(app, argc, argv);
 
@@ -434,6 +481,8 @@ int run(int argc, char** argv) {
   std::vector<std::string> ids;
   for (const auto& a : up.apriori) ids.push_back(a.target);
   const int n = static_cast<int>(ids.size());
+  const std::map<std::string, Vec6> gravity_periodic =
+      gravity_periodic_budgets(up.observer.target_gravity_periodic_a_roe_m, gravity_periodic_args, ids);
   const auto truth = read_truth(run_dir + "/truth.oem");
 
   // True pixels and true times per frame. IMP tags a bearing with the
@@ -620,7 +669,11 @@ int run(int argc, char** argv) {
       const int off = f.layout().target_offset(k);
       Vec6 d = f.state().segment<6>(off) - roe_true;
       d[1] = std::remainder(d[1], 2.0 * M_PI);
-      const Mat6 Pk = f.covariance().block<6, 6>(off, off);
+      Mat6 Pk = f.covariance().block<6, 6>(off, off);
+      // What the navigator reports: the gravity budget in the covariance, not in the filter.
+      if (const auto gp = gravity_periodic.find(id); gp != gravity_periodic.end()) {
+        Pk.diagonal() += (gp->second / astro::QnsElements::from_vector(f.state().head<6>()).a_m).cwiseAbs2();
+      }
       const double nees = d.dot(Pk.ldlt().solve(d));
       if (orbits >= after_orbits) {
         nees_sum[static_cast<std::size_t>(k)] += nees;
