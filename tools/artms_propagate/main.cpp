@@ -6,13 +6,13 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "artms/astro/constants.hpp"
 #include "artms/astro/elements.hpp"
 #include "artms/io/duration.hpp"
+#include "artms/io/number_list.hpp"
 #include "artms/io/oem.hpp"
 #include "artms/io/paths.hpp"
 #include "artms/truth_propagator/cowell.hpp"
@@ -20,30 +20,6 @@
 namespace {
 
 using namespace artms;
-
-std::vector<double> parse_list(const std::string& text, std::size_t count, const char* option) {
-  std::vector<double> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    std::size_t used = 0;
-    double v = 0.0;
-    try {
-      v = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || !std::isfinite(v)) {
-      throw std::invalid_argument(std::string(option) + ": '" + item + "' is not a number");
-    }
-    out.push_back(v);
-  }
-  if (out.size() != count) {
-    throw std::invalid_argument(std::string(option) + " needs " + std::to_string(count) +
-                                " comma-separated numbers, got " + std::to_string(out.size()));
-  }
-  return out;
-}
 
 int run(int argc, char** argv) {
   CLI::App app{
@@ -96,10 +72,10 @@ int run(int argc, char** argv) {
     if (!(step_s > 0.0)) throw std::invalid_argument("--step must be positive");
     astro::StateVector x0;
     if (!rv.empty()) {
-      const auto v = parse_list(rv, 6, "--rv");
+      const auto v = io::parse_number_list(rv, 6, "--rv");
       x0 = {astro::Vec3(v[0], v[1], v[2]), astro::Vec3(v[3], v[4], v[5])};
     } else {
-      const auto v = parse_list(oe, 6, "--oe");
+      const auto v = io::parse_number_list(oe, 6, "--oe");
       astro::KeplerElements k{v[0], v[1], v[2] * astro::kDegToRad, v[3] * astro::kDegToRad,
                               v[4] * astro::kDegToRad, v[5] * astro::kDegToRad};
       x0 = astro::cartesian_from_kepler(k);

@@ -24,6 +24,7 @@
 
 #include "artms/fsw/navigator.hpp"
 #include "artms/io/csv.hpp"
+#include "artms/io/number_list.hpp"
 #include "artms/io/oem.hpp"
 #include "artms/io/paths.hpp"
 #include <Eigen/Dense>
@@ -88,23 +89,12 @@ std::map<std::string, Vec6> gravity_periodic_budgets(const std::map<std::string,
       throw std::runtime_error("--gravity-periodic-roe-m " + arg + ": expected ID=da,dlambda,dex,dey,dix,diy with ID one "
                                "of the observer's targets");
     }
-    std::stringstream ss(arg.substr(eq + 1));
-    Vec6 v;
-    std::string item;
-    int k = 0;
-    while (std::getline(ss, item, ',')) {
-      std::size_t used = 0;
-      double x = std::nan("");
-      try {
-        x = std::stod(item, &used);
-      } catch (const std::exception&) {
-      }
-      if (k >= 6 || used != item.size() || !(x >= 0.0 && x <= 1e4)) {
-        throw std::runtime_error("--gravity-periodic-roe-m " + arg + ": six numbers in [0, 1e4] m expected");
-      }
-      v[k++] = x;
+    const std::string what = "--gravity-periodic-roe-m " + arg;
+    const std::vector<double> x = io::parse_number_list(arg.substr(eq + 1), 6, what);
+    if (!std::all_of(x.begin(), x.end(), [](double xi) { return xi >= 0.0 && xi <= 1e4; })) {
+      throw std::runtime_error(what + ": six numbers in [0, 1e4] m expected");
     }
-    if (k != 6) throw std::runtime_error("--gravity-periodic-roe-m " + arg + ": six numbers in [0, 1e4] m expected");
+    const Vec6 v = Eigen::Map<const Vec6>(x.data());
     out[id] = v;
   }
   return out;
@@ -662,6 +652,7 @@ int run(int argc, char** argv) {
     if (it == truth.end() || !it->second.count(observer)) continue;
     const astro::QnsElements obs_true = astro::qns_from_cartesian(it->second.at(observer));
     const double orbits = static_cast<double>(t_rep.ns_since_j2000 - t0) * 1e-9 / period_s;
+    const double a_obs_m = astro::QnsElements::from_vector(f.state().head<6>()).a_m;  // the navigator's a_o
     for (int k = 0; k < n; ++k) {
       const auto& id = ids[static_cast<std::size_t>(k)];
       if (!it->second.count(id)) continue;
@@ -672,7 +663,7 @@ int run(int argc, char** argv) {
       Mat6 Pk = f.covariance().block<6, 6>(off, off);
       // What the navigator reports: the gravity budget in the covariance, not in the filter.
       if (const auto gp = gravity_periodic.find(id); gp != gravity_periodic.end()) {
-        Pk.diagonal() += (gp->second / astro::QnsElements::from_vector(f.state().head<6>()).a_m).cwiseAbs2();
+        Pk.diagonal() += (gp->second / a_obs_m).cwiseAbs2();
       }
       const double nees = d.dot(Pk.ldlt().solve(d));
       if (orbits >= after_orbits) {
