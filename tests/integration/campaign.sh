@@ -47,6 +47,12 @@ for k, t in c["targets"].items():
         assert key in t, (k, key)
     assert len(t["final_dlambda_error_pct"]["per_seed"]) == 3 and t["final_dlambda_error_pct"]["max"] is not None, k
     assert len(t["frac_within_3sigma"]["per_seed"]) == 3, k
+    if t["frac_inside_band"] is not None:
+        assert abs(t["frac_inside_band"] + t["frac_below_band"] + t["frac_above_band"] - 1.0) < 1e-9, (k, t)
+    beyond3 = [json.load(open(f"{d}/seed_{s}/summary.json"))["observers"][obs]["targets"][tgt].get("frac_beyond_3sigma")
+               for s in c["seeds"]]
+    beyond3 = [v for v in beyond3 if v is not None]
+    assert t["worst_seed_frac_beyond_3sigma"] == (max(beyond3) if beyond3 else None), (k, t["worst_seed_frac_beyond_3sigma"])
     assert t["convergence"]["never_converged"] == sum(v is None for v in t["convergence"]["per_seed"]), k
     for png in (f"campaign_nees_{obs}_{tgt}.png", f"campaign_error_{obs}_{tgt}.png"):
         assert os.path.getsize(f"{d}/{png}") > 0, png

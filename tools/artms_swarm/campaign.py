@@ -490,6 +490,11 @@ def since_epoch(series, e0):
     return {t - e0: x for t, x in series.items()}
 
 
+def _worst(values):
+    v = [x for x in values if isinstance(x, (int, float)) and math.isfinite(x)]
+    return float(max(v)) if v else None
+
+
 def _stats(values):
     v = [x for x in values if isinstance(x, (int, float)) and math.isfinite(x)]
     import numpy as np
@@ -572,6 +577,8 @@ def summarise(out, seeds, meta, failures):
                 entry.update({
                     "runs": Rt, "band_95": [float(lo), float(hi)],
                     "after_orbit": float(start), "steps": int(sel.sum()), "frac_inside_band": frac,
+                    "frac_below_band": float(np.mean(avg[sel] < lo)) if sel.any() else None,
+                    "frac_above_band": float(np.mean(avg[sel] > hi)) if sel.any() else None,
                     "mean_nees_after": float(np.mean(avg[sel])) if sel.any() else None,
                     "after_median_orbit": start_med, "steps_after_median": int(sel_med.sum()),
                     "frac_inside_band_after_median": frac_med})
@@ -598,6 +605,9 @@ def summarise(out, seeds, meta, failures):
                                    "seeds_min_at_least_0.99": sum(1 for m in mins if m is not None and m >= 0.99)},
             "initialisation": initialisation_entry(seeds, tg, meta.get("init_within_orbits")),
             "nees_mean_per_seed": [t.get("nees_mean") for t in tg],
+            # Over-confidence at a glance: the worst seed's share of steps beyond 3 and 5 sigma.
+            "worst_seed_frac_beyond_3sigma": _worst([t.get("frac_beyond_3sigma") for t in tg]),
+            "worst_seed_frac_beyond_5sigma": _worst([t.get("frac_beyond_5sigma") for t in tg]),
             "seeds_with_target": [s for s, t in zip(seeds, tg) if t and t.get("estimated", True)],
         })
         plot_errors(out, obs, tgt, seeds, tg)
@@ -886,16 +896,21 @@ def print_table(s, out):
           f"({len(s['failures'])} failed), band 95 % "
           + (f"[{s['band_95'][0]:.2f}, {s['band_95'][1]:.2f}]" if s["band_95"] else "-")
           + world_text(s.get("epoch_window_s"), s.get("phase_window_deg")))
-    print(f"{'target':<10} {'inside latest':>13} {'inside median':>13} {'mean NEES':>9} "
-          f"{'dl err % med':>12} {'(max)':>8} {'conv med':>8} {'(max)':>6} {'never':>5} {'mean NIS':>8} {'NIS inside':>10}")
+    print(f"{'target':<10} {'inside latest':>13} {'(below':>7} {'above)':>7} {'inside median':>13} {'mean NEES':>9} "
+          f"{'dl err % med':>12} {'(max)':>8} {'conv med':>8} {'(max)':>6} {'never':>5} {'mean NIS':>8} {'NIS inside':>10} "
+          f"{'worst seed >3/5 sigma':>21}")
     for k, t in s["targets"].items():
         fr, frm = t.get("frac_inside_band"), t.get("frac_inside_band_after_median")
+        lo, hi = t.get("frac_below_band"), t.get("frac_above_band")
+        w3, w5 = t.get("worst_seed_frac_beyond_3sigma"), t.get("worst_seed_frac_beyond_5sigma")
         nis = (t.get("nis") or {}).get("after_latest_convergence")
-        print(f"{k:<10} {f(fr and 100 * fr, '{:.1f} %'):>13} {f(frm and 100 * frm, '{:.1f} %'):>13} "
+        print(f"{k:<10} {f(fr and 100 * fr, '{:.1f} %'):>13} {f(lo is not None and 100 * lo, '{:.1f}'):>7} "
+              f"{f(hi is not None and 100 * hi, '{:.1f}'):>7} {f(frm and 100 * frm, '{:.1f} %'):>13} "
               f"{f(t.get('mean_nees_after'), '{:.2f}'):>9} {f(t['final_dlambda_error_pct']['median'], '{:.3f}'):>12} "
               f"{f(t['final_dlambda_error_pct']['max'], '{:.3f}'):>8} {f(t['convergence']['median_orbits'], '{:.2f}'):>8} "
               f"{f(t['convergence']['max_orbits'], '{:.2f}'):>6} {t['convergence']['never_converged']:>5} "
-              f"{f(nis and nis['mean_nis'], '{:.2f}'):>8} {f(nis and 100 * nis['frac_inside_band'], '{:.1f} %'):>10}")
+              f"{f(nis and nis['mean_nis'], '{:.2f}'):>8} {f(nis and 100 * nis['frac_inside_band'], '{:.1f} %'):>10} "
+              f"{f(w3 is not None and 100 * w3, '{:.1f} %'):>10} / {f(w5 is not None and 100 * w5, '{:.1f} %'):>8}")
     for k, t in s["targets"].items():
         c = t.get("common_to_every_seed")
         if c:

@@ -437,11 +437,11 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
     // The onboard model's expected error on the observer's own orbit (mode 4
     // has no GNSS to correct it).
     sod_opt_ = sod_options(up_.tuning.sod, obs);
-    // One nominal for every target (the filter propagates them alike): the
-    // first target's uplinked properties; a target that differs is left to
-    // its differential ballistic state.
-    filter_.emplace(forces_, up_.onboard_properties(up_.observer.spacecraft),
-                    up_.onboard_properties(target_ids_.empty() ? std::string() : target_ids_.front()), layout, sod_opt_);
+    // Each target flies its own uplinked nominal properties; its
+    // differential ballistic state (if estimated) adds to that nominal.
+    std::vector<dynamics::SpacecraftProperties> target_nominal;
+    for (const auto& id : target_ids_) target_nominal.push_back(up_.onboard_properties(id));
+    filter_.emplace(forces_, up_.onboard_properties(up_.observer.spacecraft), layout, target_nominal, sod_opt_);
     aux = Eigen::VectorXd::Zero(layout.size() - layout.aux_offset());
     P_aux = auxiliary_prior_variance(up_.tuning.sod, layout).asDiagonal();
   } else {
@@ -1228,9 +1228,9 @@ void Navigator::bind_track(int track, int k, astro::TimeTT t) {
 bod::Options Navigator::bod_options_for_target(int k) const {
   bod::Options o = bod_opt_;
   if (!o.onboard_forces || k < 0) return o;
-  // SOD propagates every target with the first target's nominal properties
-  // (where the filter is made) plus its differential ballistic state.
-  dynamics::SpacecraftProperties p = up_.onboard_properties(target_ids_.front());
+  // SOD propagates each target with its own nominal properties plus its
+  // differential ballistic state.
+  dynamics::SpacecraftProperties p = up_.onboard_properties(target_ids_[static_cast<std::size_t>(k)]);
   if (filter_ && filter_->layout().ballistic && has_estimate_[static_cast<std::size_t>(k)]) {
     const double b_nominal = p.cd * p.drag_area_m2 / p.mass_kg;
     const double db = filter_->state()[filter_->layout().ballistic_index(k)];

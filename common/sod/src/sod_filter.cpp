@@ -200,14 +200,27 @@ SodFilter::SodFilter(const dynamics::ForceModel& forces,
                      const dynamics::SpacecraftProperties& observer_sc,
                      const dynamics::SpacecraftProperties& target_sc, StateLayout layout,
                      SodOptions options)
+    : SodFilter(forces, observer_sc, layout,
+                std::vector<dynamics::SpacecraftProperties>(static_cast<std::size_t>(std::max(layout.n_targets, 0)),
+                                                            target_sc),
+                std::move(options)) {}
+
+SodFilter::SodFilter(const dynamics::ForceModel& forces,
+                     const dynamics::SpacecraftProperties& observer_sc,
+                     StateLayout layout, const std::vector<dynamics::SpacecraftProperties>& target_sc,
+                     SodOptions options)
     : observer_prop_(forces, observer_sc, options.propagator),
-      target_prop_(forces, target_sc, options.propagator),
       gm_m3ps2_(forces.gm_m3ps2()),
       layout_(layout),
       options_(std::move(options)),
       forces_(forces) {
   options_.validate();
   if (layout_.n_targets < 1) throw std::invalid_argument("StateLayout.n_targets: must be >= 1");
+  if (static_cast<int>(target_sc.size()) != layout_.n_targets)
+    throw std::invalid_argument("SodFilter: need one target's properties per target (" +
+                                std::to_string(layout_.n_targets) + "), got " + std::to_string(target_sc.size()));
+  target_props_.reserve(target_sc.size());
+  for (const auto& sc : target_sc) target_props_.emplace_back(forces, sc, options_.propagator);
   if (layout_.n_aux < 0) throw std::invalid_argument("StateLayout.n_aux: must be >= 0");
   if (layout_.n_time_tag < 0 || layout_.n_time_tag > 2)
     throw std::invalid_argument("StateLayout.n_time_tag: must be 0, 1 or 2");
@@ -459,7 +472,7 @@ TimeUpdateSummary SodFilter::time_update(TimeTT t) {
         if (j == 0 || column_of(j, n) < end) {
           const QnsElements tgt0 =
               astro::qns_from_roe(obs0[j], Roe::from_vector(X.col(j).segment<6>(off)));
-          tgt1 = target_prop_.propagate(tgt0, t_, t);
+          tgt1 = target_props_[static_cast<std::size_t>(k)].propagate(tgt0, t_, t);
           ++s.propagations;
           if (j == 0) tgt_mean1 = tgt1;
         } else {
@@ -496,7 +509,7 @@ TimeUpdateSummary SodFilter::predict_linearised(TimeTT t) {
     for (int k = 0; k < layout_.n_targets; ++k) {
       const int off = layout_.target_offset(k);
       const Vec6 roe0 = x_.segment<6>(off);
-      const QnsElements tgt1 = target_prop_.propagate(astro::qns_from_roe(o0, Roe::from_vector(roe0)), t_, t);
+      const QnsElements tgt1 = target_props_[static_cast<std::size_t>(k)].propagate(astro::qns_from_roe(o0, Roe::from_vector(roe0)), t_, t);
       ++s.propagations;
       const Vec6 roe1 = astro::roe_from_qns(o1, tgt1).as_vector();
       x.segment<6>(off) = roe1;
@@ -509,7 +522,7 @@ TimeUpdateSummary SodFilter::predict_linearised(TimeTT t) {
         const double h = std::max(std::sqrt(std::max(P_(off + i, off + i), 0.0)), 1e-9);
         Vec6 roe0_h = roe0;
         roe0_h[i] += h;
-        const QnsElements tgt1_h = target_prop_.propagate(astro::qns_from_roe(o0, Roe::from_vector(roe0_h)), t_, t);
+        const QnsElements tgt1_h = target_props_[static_cast<std::size_t>(k)].propagate(astro::qns_from_roe(o0, Roe::from_vector(roe0_h)), t_, t);
         ++s.propagations;
         Vec6 d = astro::roe_from_qns(o1, tgt1_h).as_vector() - roe1;
         d[StateLayout::kDlambda] = astro::wrap_pi(d[StateLayout::kDlambda]);
@@ -572,18 +585,29 @@ void SodFilter::apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) 
   }
   if (!layout_.ballistic) return;
   // Differential drag of target k beyond the onboard nominal: a ballistic
-  // coefficient dB_k more than the nominal adds dB_k f_T(B = 1) along-track,
-  // d(delta a)/dt = 2 f_T / (n a) (GVE, near-circular orbit), at the observer's
-  // mean position (the targets are within ~1000 km: same density to first order).
+  // coefficient dB_k more than the nominal adds dB_k f(B = 1), f = (f_R, f_T,
+  // f_N) in the observer's RTN frame, at the observer's mean position (the
+  // targets are within ~1000 km: same density to first order). Its rates on
+  // the ROE are Gauss's variational equations for a near-circular orbit
+  // (docs/sod.md, "The ballistic state's rates"):
+  //   d(da)/dt = 2 f_T / (n a),            d(dlambda)/dt = -2 f_R / (n a),
+  //   d(dex)/dt = (sin u f_R + 2 cos u f_T) / (n a),
+  //   d(dey)/dt = (-cos u f_R + 2 sin u f_T) / (n a),
+  //   d(dix)/dt = cos u f_N / (n a),       d(diy)/dt = sin u f_N / (n a).
+  // The eccentricity terms carry the density's variation along the orbit (the
+  // day-night bulge): with a constant density they average out over an orbit,
+  // with the bulge they drive the relative eccentricity secularly.
   const QnsElements obs = QnsElements::from_vector(x_.head<6>());
   const astro::StateVector xo = astro::cartesian_from_qns(obs, gm_m3ps2_);
-  const Vec3 drag = forces_.unit_ballistic_drag_eci(t_, xo);
-  const double f_t = (astro::R_rtn_from_eci(xo) * drag)[1];
-  const double n = std::sqrt(gm_m3ps2_ / std::pow(obs.a_m, 3));
-  const double rate = 2.0 * f_t / (n * obs.a_m);  // per unit dB, 1/s
+  const Vec3 f = astro::R_rtn_from_eci(xo) * forces_.unit_ballistic_drag_eci(t_, xo);
+  const double n = std::sqrt(gm_m3ps2_ / std::pow(obs.a_m, 3)), na = n * obs.a_m;
+  const double cu = std::cos(obs.u_rad), su = std::sin(obs.u_rad);
+  Vec6 rate;  // per unit dB, 1/s
+  rate << 2.0 * f[1] / na, -2.0 * f[0] / na, (su * f[0] + 2.0 * cu * f[1]) / na,
+      (-cu * f[0] + 2.0 * su * f[1]) / na, cu * f[2] / na, su * f[2] / na;
   for (int k = 0; k < layout_.n_targets; ++k) {
-    const int ia = layout_.target_offset(k) + StateLayout::kDa, ib = layout_.ballistic_index(k);
-    for (int j = 0; j < m; ++j) Y(ia, j) += rate * X(ib, j) * dt_s;
+    const int off = layout_.target_offset(k), ib = layout_.ballistic_index(k);
+    for (int j = 0; j < m; ++j) Y.block<6, 1>(off, j) += rate * (X(ib, j) * dt_s);
   }
 }
 

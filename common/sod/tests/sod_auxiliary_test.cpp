@@ -24,6 +24,13 @@ using testing::Truth;
 using astro::Roe;
 
 constexpr double kStep_s = 60.0;
+
+// J2 and the onboard Harris-Priester drag.
+const dynamics::ForceModel& j2_drag_forces() {
+  static const dynamics::ForceModel forces =
+      dynamics::ForceModel::load(dynamics::ForceModelOptions::parse("grav2_0,drag"), ARTMS_DATA_DIR);
+  return forces;
+}
 const TimeTT kT0 = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
 
 TEST(SodChi2, QuantileMatchesScipy) {
@@ -252,8 +259,7 @@ TEST(SodHealth, InflateTargetScalesItsBlockAndKeepsCorrelations) {
 // with a differential ballistic state estimates the excess and keeps every
 // ROE within 3 sigma; its estimate of dB is within 3 sigma of the truth.
 TEST(SodAuxiliary, DifferentialBallisticCoefficientIsEstimated) {
-  static const dynamics::ForceModel drag_forces =
-      dynamics::ForceModel::load(dynamics::ForceModelOptions::parse("grav2_0,drag"), ARTMS_DATA_DIR);
+  const dynamics::ForceModel& drag_forces = j2_drag_forces();
   const dynamics::SpacecraftProperties nominal;
   dynamics::SpacecraftProperties heavy_drag = nominal;
   heavy_drag.cd = 1.6 * nominal.cd;
@@ -316,6 +322,62 @@ TEST(SodAuxiliary, DifferentialBallisticCoefficientIsEstimated) {
   for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(err[i]), 3.0 * filter.a_roe_sigma_m(0)[i]) << "roe " << i;
 }
 
+// The ballistic state's rates (Gauss's equations, near-circular) against the
+// numerical propagator: a target whose ballistic coefficient is twice the
+// nominal, flown by the filter as the nominal plus dB = B (no measurement,
+// a covariance too small to matter), follows a direct propagation with the
+// doubled drag over two orbits in every ROE, the relative eccentricity's
+// drive by the day-night density bulge included.
+TEST(SodAuxiliary, BallisticStateRatesFollowTheNumericalPropagator) {
+  const dynamics::ForceModel& drag_forces = j2_drag_forces();
+  const dynamics::SpacecraftProperties nominal;
+  dynamics::SpacecraftProperties doubled = nominal;
+  doubled.drag_area_m2 *= 2.0;
+  const double B = nominal.cd * nominal.drag_area_m2 / nominal.mass_kg;
+  astro::QnsElements obs = testing::observer_at_start();
+  obs.a_m = astro::kRadiusEarth_m + 450e3;
+  const Vec6 a_roe = testing::starling_a_roe_m()[0];
+  const astro::QnsElements tgt0 = astro::qns_from_roe(obs, Roe::from_scaled_m(a_roe, obs.a_m));
+  StateLayout layout{1, 0};
+  layout.ballistic = true;
+  SodOptions o;
+  o.adaptive.enabled = false;
+  o.q_target_a_roe_m2ps = Vec6::Zero();
+  o.q_observer = Vec6::Zero();
+  o.q_ballistic_m4pkg2ps = 0.0;
+  SodFilter filter(drag_forces, nominal, nominal, layout, o);
+  VectorXd x = VectorXd::Zero(layout.size());
+  x.head<6>() = obs.as_vector();
+  x.segment<6>(6) = astro::roe_from_qns(obs, tgt0).as_vector();
+  x[layout.ballistic_index(0)] = B;
+  VectorXd sigma = VectorXd::Constant(layout.size(), 1e-10);  // ~1 mm in a*ROE and the observer's angles
+  sigma[StateLayout::kA] = 1e-3;
+  sigma[layout.ballistic_index(0)] = 1e-6 * B;
+  filter.initialize(kT0, x, MatrixXd(sigma.cwiseAbs2().asDiagonal()));
+  const dynamics::GveRk4Propagator p_nominal(drag_forces, nominal, o.propagator), p_doubled(drag_forces, doubled, o.propagator);
+  const int steps = static_cast<int>(2 * astro::orbit_period_s(obs.a_m) / kStep_s);
+  const TimeTT t1 = kT0.plus_seconds(kStep_s * steps);
+  for (int s = 1; s <= steps; ++s) ASSERT_TRUE(filter.time_update(kT0.plus_seconds(kStep_s * s)).usable);
+  const astro::QnsElements obs1 = p_nominal.propagate(obs, kT0, t1);
+  const Vec6 with_nominal = obs.a_m * astro::roe_from_qns(obs1, p_nominal.propagate(tgt0, kT0, t1)).as_vector();
+  const Vec6 with_doubled = obs.a_m * astro::roe_from_qns(obs1, p_doubled.propagate(tgt0, kT0, t1)).as_vector();
+  const Vec6 effect = with_doubled - with_nominal, modelled = filter.a_roe_m(0) - with_nominal;
+  std::printf("a*ROE [da, dl, dex, dey, dix, diy] after 2 orbits, m: effect of doubling B ");
+  for (int i = 0; i < 6; ++i) std::printf("%.3f ", effect[i]);
+  std::printf("; the ballistic state's ");
+  for (int i = 0; i < 6; ++i) std::printf("%.3f ", modelled[i]);
+  std::printf("\n");
+  // The bulge drives the relative eccentricity by a sizeable part of a*da's change.
+  const double e_effect = std::hypot(effect[2], effect[3]);
+  EXPECT_GT(e_effect, 0.05 * std::abs(effect[0]));
+  constexpr double kRelTol = 0.05;  // first-order rates at the step's start over 60 s steps
+  for (int i = 0; i < 6; ++i) {
+    const double scale = i == 1 ? std::abs(effect[1]) : std::max(std::abs(effect[0]), e_effect);
+    EXPECT_NEAR(modelled[i], effect[i], kRelTol * scale) << "roe " << i;
+  }
+  EXPECT_NEAR(std::hypot(modelled[2], modelled[3]), e_effect, kRelTol * e_effect);
+}
+
 // A target's along-track noise is the observer's along-track part in ROE
 // units: da = dv_T 2/(n a), d(ex, ey) at half of it (u-averaged), none on
 // dlambda, dix, diy (Gauss, M&G eq. 3.98).
@@ -342,8 +404,7 @@ TEST(SodProcessNoise, TargetAlongTrackNoiseThroughGaussEquations) {
 // floor still holds (a budget, not an adaptation): per component the nominal
 // rate, at least floor x nominal + D.
 TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
-  static const dynamics::ForceModel drag_forces =
-      dynamics::ForceModel::load(dynamics::ForceModelOptions::parse("grav2_0,drag"), ARTMS_DATA_DIR);
+  const dynamics::ForceModel& drag_forces = j2_drag_forces();
   const dynamics::SpacecraftProperties nominal;
   const double B = nominal.cd * nominal.drag_area_m2 / nominal.mass_kg, error = 0.5;
   StateLayout layout{2, 0};
@@ -428,6 +489,55 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   EXPECT_EQ(Mat6(Qo.block<6, 6>(off1, off1)), Mat6(Qf.block<6, 6>(off1, off1)));
   EXPECT_EQ(Mat6(Qo.topLeftCorner<6, 6>()), Mat6(Q.topLeftCorner<6, 6>()));
   EXPECT_NE(Mat6(Qo.topLeftCorner<6, 6>()), Mat6(Qf.topLeftCorner<6, 6>()));  // the observer did adapt
+}
+
+// Each target flies its own uplinked nominal: a target with five times the
+// drag area is propagated with it (the filter's mean follows a direct
+// propagation of each body to the millimetre), while the shared-nominal
+// constructor moves it as the first target by metres after 50 minutes.
+TEST(SodFilter, EachTargetFliesItsOwnNominalProperties) {
+  const dynamics::ForceModel& drag_forces = j2_drag_forces();
+  const dynamics::SpacecraftProperties nominal;
+  dynamics::SpacecraftProperties large = nominal;
+  large.drag_area_m2 *= 5.0;
+  astro::QnsElements obs = testing::observer_at_start();
+  obs.a_m = astro::kRadiusEarth_m + 450e3;
+  const StateLayout layout{2, 0};
+  VectorXd x = VectorXd::Zero(layout.size());
+  x.head<6>() = obs.as_vector();
+  std::vector<Vec6> roe0(2);
+  for (int k = 0; k < 2; ++k) {
+    roe0[k] = Roe::from_scaled_m(testing::starling_a_roe_m()[k], obs.a_m).as_vector();
+    x.segment<6>(layout.target_offset(k)) = roe0[k];
+  }
+  const MatrixXd P = MatrixXd::Identity(layout.size(), layout.size()) * 1e-20;
+  const TimeTT t1 = kT0.plus_seconds(3000.0);
+  const auto run = [&](SodFilter f) {
+    f.initialize(kT0, x, P);
+    EXPECT_TRUE(f.time_update(t1).usable);
+    return VectorXd(f.state());
+  };
+  SodOptions o;
+  o.adaptive.enabled = false;
+  const VectorXd own = run(SodFilter(drag_forces, nominal, layout, std::vector<dynamics::SpacecraftProperties>{nominal, large},
+                                     o));
+  const VectorXd shared = run(SodFilter(drag_forces, nominal, nominal, layout, o));
+  const dynamics::GveRk4Propagator p_nominal(drag_forces, nominal, o.propagator), p_large(drag_forces, large, o.propagator);
+  const astro::QnsElements o1 = p_nominal.propagate(obs, kT0, t1);
+  for (int k = 0; k < 2; ++k) {
+    const auto& prop = k == 0 ? p_nominal : p_large;
+    const Vec6 direct =
+        astro::roe_from_qns(o1, prop.propagate(astro::qns_from_roe(obs, Roe::from_vector(roe0[k])), kT0, t1)).as_vector();
+    const int off = layout.target_offset(k);
+    EXPECT_LT(((own.segment<6>(off) - direct) * obs.a_m).cwiseAbs().maxCoeff(), 1e-3) << "target " << k;
+  }
+  const double moved_m = ((own.segment<6>(layout.target_offset(1)) - shared.segment<6>(layout.target_offset(1))) *
+                          obs.a_m).cwiseAbs().maxCoeff();
+  EXPECT_GT(moved_m, 1.0);
+  EXPECT_LT(((own.segment<6>(layout.target_offset(0)) - shared.segment<6>(layout.target_offset(0))) * obs.a_m)
+                .cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_THROW(SodFilter(drag_forces, nominal, layout, std::vector<dynamics::SpacecraftProperties>{nominal}, o),
+               std::invalid_argument);
 }
 
 // The observer's own planned 10 cm/s along-track burn (executed 3 % long):

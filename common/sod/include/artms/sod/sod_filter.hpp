@@ -329,8 +329,15 @@ class SodFilter {
  public:
   // forces must outlive the filter. Throws std::invalid_argument for bad
   // options or a layout without targets.
+  // Every target propagated with the same nominal properties target_sc.
   SodFilter(const dynamics::ForceModel& forces, const dynamics::SpacecraftProperties& observer_sc,
             const dynamics::SpacecraftProperties& target_sc, StateLayout layout,
+            SodOptions options = {});
+  // Target k propagated with its own nominal properties target_sc[k]
+  // (layout.n_targets of them; its ballistic state, if any, adds to its own
+  // nominal).
+  SodFilter(const dynamics::ForceModel& forces, const dynamics::SpacecraftProperties& observer_sc,
+            StateLayout layout, const std::vector<dynamics::SpacecraftProperties>& target_sc,
             SodOptions options = {});
 
   // Sets epoch, mean and covariance (layout().size()). Throws
@@ -484,7 +491,7 @@ class SodFilter {
   void mean_and_covariance(const MatrixXd& Y, VectorXd& mean, MatrixXd& P) const;
 
   dynamics::GveRk4Propagator observer_prop_;
-  dynamics::GveRk4Propagator target_prop_;
+  std::vector<dynamics::GveRk4Propagator> target_props_;  // one per target
   double gm_m3ps2_;
   StateLayout layout_;
   SodOptions options_;
