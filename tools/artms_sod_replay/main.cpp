@@ -217,9 +217,8 @@ int replay_mode4(const std::string& run_dir, const std::string& observer, const 
   const astro::QnsElements obs0 = astro::qns_from_cartesian(c.x_eci);
   const Mat6 J0 = astro::jacobian_qns_from_cartesian(c.x_eci);
   const sod::StateLayout layout = fsw::sod_layout(tuning, n);
-  std::vector<dynamics::SpacecraftProperties> target_nominal;
-  for (const auto& id : ids) target_nominal.push_back(up.onboard_properties(id));
-  sod::SodFilter f(forces, up.onboard_properties(observer), layout, target_nominal, fsw::sod_options(tuning, obs0));
+  sod::SodFilter f(forces, up.onboard_properties(observer), layout, fsw::target_nominal_properties(up, ids),
+                   fsw::sod_options(tuning, obs0));
   MatrixXd P = MatrixXd::Zero(layout.size(), layout.size());
   P.topLeftCorner<6, 6>() = J0 * c.P_rv * J0.transpose() + Mat6::Identity() * 1e-20;
   std::vector<astro::Roe> roes;

@@ -143,6 +143,14 @@ sod::StateLayout sod_layout(const config::SodTuning& t, int n_targets, int n_sen
   return layout;
 }
 
+std::vector<dynamics::SpacecraftProperties> target_nominal_properties(const config::ObserverUplink& up,
+                                                                      const std::vector<std::string>& target_ids) {
+  std::vector<dynamics::SpacecraftProperties> out;
+  out.reserve(target_ids.size());
+  for (const auto& id : target_ids) out.push_back(up.onboard_properties(id));
+  return out;
+}
+
 Eigen::VectorXd auxiliary_prior_variance(const config::SodTuning& t, const sod::StateLayout& layout) {
   Eigen::VectorXd var = Eigen::VectorXd::Zero(layout.size() - layout.aux_offset());
   if (layout.n_time_tag > 0) var[0] = t.time_tag_sigma_s * t.time_tag_sigma_s;
@@ -439,9 +447,8 @@ void Navigator::initialise_at(astro::TimeTT t0, const astro::QnsElements& obs, M
     sod_opt_ = sod_options(up_.tuning.sod, obs);
     // Each target flies its own uplinked nominal properties; its
     // differential ballistic state (if estimated) adds to that nominal.
-    std::vector<dynamics::SpacecraftProperties> target_nominal;
-    for (const auto& id : target_ids_) target_nominal.push_back(up_.onboard_properties(id));
-    filter_.emplace(forces_, up_.onboard_properties(up_.observer.spacecraft), layout, target_nominal, sod_opt_);
+    filter_.emplace(forces_, up_.onboard_properties(up_.observer.spacecraft), layout,
+                    target_nominal_properties(up_, target_ids_), sod_opt_);
     aux = Eigen::VectorXd::Zero(layout.size() - layout.aux_offset());
     P_aux = auxiliary_prior_variance(up_.tuning.sod, layout).asDiagonal();
   } else {

@@ -136,6 +136,10 @@ sod::SodOptions sod_options(const config::SodTuning& tuning, const astro::QnsEle
 // tuning enables (camera time tag, differential ballistic coefficients and,
 // with time_tag_senders, the clocks of n_senders remote observers).
 sod::StateLayout sod_layout(const config::SodTuning& tuning, int n_targets, int n_senders = 0);
+// Each target's uplinked nominal properties, in the order of target_ids (the
+// filter propagates target k with the k-th).
+std::vector<dynamics::SpacecraftProperties> target_nominal_properties(const config::ObserverUplink& up,
+                                                                      const std::vector<std::string>& target_ids);
 // The auxiliary states' initial variances (their uplinked 1-sigma), in the
 // layout's auxiliary order.
 Eigen::VectorXd auxiliary_prior_variance(const config::SodTuning& tuning, const sod::StateLayout& layout);
