@@ -151,6 +151,8 @@ for t in stats:
     assert t["runs"] == 3 and t["steps"] > 0 and t["mean_nees"] > 0, t
     assert abs(t["frac_inside_band"] + t["frac_above_band"] + t["frac_below_band"] - 1.0) < 1e-9, t
     assert len(t["mean_z2_per_roe"]) == 6 and all(z >= 0 for z in t["mean_z2_per_roe"]), t
+    d = t["mean_z2_per_principal_direction"]
+    assert len(d) == 6 and abs(sum(d) - t["mean_nees"]) <= 0.01 * t["mean_nees"], t  # the csv rounds the errors
 bad = json.load(open(f"{w}/replay_bad/replay_summary.json"))
 assert bad["seeds"] == [] and [f["seed"] for f in bad["failures"]] == [1, 2, 3], bad
 assert all(f["exit_code"] not in (0, None) and f["output_tail"] for f in bad["failures"]), bad["failures"]

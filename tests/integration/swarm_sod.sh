@@ -61,6 +61,10 @@ grep -q "mode 4 only" "$WORK/replay_bad2.err" || { echo "FAIL: unclear error"; c
 # (this scenario has none); a malformed entry is a clear error.
 "$BIN/artms-sod-replay" "$WORK/run" --gravity-periodic-roe-m SV2=1,0,2,2,0.5,0.5 --csv "$WORK/replay_gp.csv" > /dev/null
 "$BIN/artms-sod-replay" "$WORK/run" --gravity-periodic-roe-m none --csv "$WORK/replay_none.csv" > /dev/null
+# This scenario estimates no ballistic coefficient: the ballistic options change nothing.
+"$BIN/artms-sod-replay" "$WORK/run" --ballistic-sigma-fraction 0.5 --ballistic-walk-fraction-per-day 0.1 \
+  --csv "$WORK/replay_ballistic.csv" > /dev/null
+cmp -s "$WORK/replay.csv" "$WORK/replay_ballistic.csv" || { echo "FAIL: ballistic options changed a replay without dB"; exit 1; }
 cmp -s "$WORK/replay.csv" "$WORK/replay_none.csv" || { echo "FAIL: --gravity-periodic-roe-m none changed the replay"; exit 1; }
 for bad in SV9=1,0,1,1,1,1 SV2=1,0,1,1,1 SV2=1,0,1,1,1,-1 SV2=1,0,1,1,x,1; do
   if "$BIN/artms-sod-replay" "$WORK/run" --gravity-periodic-roe-m "$bad" > /dev/null 2> "$WORK/replay_gp_bad.err"; then
@@ -95,6 +99,19 @@ print(f"  SV2 final a*dlambda 1-sigma: observer {live:.1f} m, replay {replayed:.
 assert fused > 50 and abs(replayed - live) <= max(0.05 * live, 1.0), (fused, replayed, live)
 rows = list(csv.DictReader(open(f"{w}/replay.csv")))
 assert rows and all(float(r["nees"]) >= 0 for r in rows), "replay.csv"
+# The reported covariance (upper triangle, m^2): its diagonal is the 1-sigmas squared, and the NEES is the
+# error's quadratic form with it.
+import numpy as np
+names = ("da", "dlambda", "dex", "dey", "dix", "diy")
+for r in rows[:: max(1, len(rows) // 200)]:
+    P = np.zeros((6, 6))
+    P[np.triu_indices(6)] = [float(x) for x in r["cov_upper_m2"].split()]
+    P = P + np.triu(P, 1).T
+    sig = np.array([float(r[f"sigma_a_{n}_m"]) for n in names])
+    assert np.allclose(np.sqrt(np.diag(P)), sig, rtol=1e-4, atol=1e-4), (r["t_tt_ns"], np.sqrt(np.diag(P)), sig)
+    e = np.array([float(r[f"err_a_{n}_m"]) for n in names])
+    # (to 1 %: the errors are written to 0.1 mm and the covariance is nearly singular along the range)
+    assert abs(e @ np.linalg.solve(P, e) - float(r["nees"])) <= 1e-2 * float(r["nees"]) + 1e-3, r
 m = re.search(r"SV2: (\d+) of \d+ bearings fused; average NEES after orbit 1.0: ([0-9.]+) ", open(f"{w}/replay_synthetic.out").read())
 assert m and int(m.group(1)) > 50 and 0.0 < float(m.group(2)) < 30.0, "synthetic replay"
 print("swarm sod: ok")

@@ -49,6 +49,24 @@ for s in starling_pse_flight starling_pse_timetag; do
     || { cat "$WORK/$s.replay600"; exit 1; }
   cat "$WORK/$s.replay" "$WORK/$s.replay600"
 done
+# The ballistic state's prior and walk as replay options (a tuning study): a thinner prior and walk give SV2 a
+# thinner a*da at the end.
+for b in "2 2" "0.5 0.1"; do
+  set -- $b
+  "$BIN/artms-sod-replay" "$WORK/starling_pse_flight" --ballistic-sigma-fraction $1 --ballistic-walk-fraction-per-day $2 \
+    --csv "$WORK/ballistic_$1.csv" > /dev/null
+done
+/usr/bin/python3 - "$WORK" <<'PY'
+import csv, sys
+w = sys.argv[1]
+last = {}
+for f in ("2", "0.5"):
+    rows = [r for r in csv.DictReader(open(f"{w}/ballistic_{f}.csv")) if r["target"] == "SV2"]
+    last[f] = float(rows[-1]["sigma_a_da_m"])
+print(f"replay: SV2's final a*da 1-sigma {last['2']:.3f} m (dB prior and walk 2 x nominal), "
+      f"{last['0.5']:.3f} m (0.5 and 0.1)")
+assert last["0.5"] < 0.95 * last["2"], last
+PY
 /usr/bin/python3 - "$WORK" <<'PY'
 import json, re, sys
 work = sys.argv[1]

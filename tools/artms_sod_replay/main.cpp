@@ -382,11 +382,19 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"diagonal", "block"}));
   app.add_option("--adaptive-average", adaptive_average, "override tuning.sod.adaptive_average")
       ->check(CLI::IsMember({"clamped", "unclamped"}));
-  std::optional<double> drag_density_error, adaptive_time_constant_s;
+  std::optional<double> drag_density_error, adaptive_time_constant_s, ballistic_sigma_fraction, ballistic_walk;
   app.add_option("--adaptive-time-constant-s", adaptive_time_constant_s,
                  "override tuning.sod.adaptive_time_constant (s)")
       ->check(CLI::Range(0.0, config::SodTuning::kMaxAdaptiveTimeConstantS));
   app.add_option("--drag-density-error", drag_density_error, "override tuning.sod.drag_density_error")
+      ->check(CLI::Range(0.0, 10.0));
+  app.add_option("--ballistic-sigma-fraction", ballistic_sigma_fraction,
+                 "override tuning.sod.ballistic.sigma_fraction (each target's differential ballistic coefficient: "
+                 "initial 1-sigma and random walk per day, as a fraction of the nominal Cd A/m)")
+      ->check(CLI::Range(1e-6, 10.0));
+  app.add_option("--ballistic-walk-fraction-per-day", ballistic_walk,
+                 "modes 1 and 3, a study: the differential ballistic coefficient's random walk per day as a fraction "
+                 "of the nominal Cd A/m, apart from its initial 1-sigma (default: sigma_fraction, as on board)")
       ->check(CLI::Range(0.0, 10.0));
   std::string target_lines;
   app.add_option("--target-lines", target_lines,
@@ -417,7 +425,8 @@ int run(int argc, char** argv) {
                  "covariance as the navigator adds the uplink's (observers[].targets[].gravity_periodic_roe_m): "
                  "ID=da,dlambda,dex,dey,dix,diy in a*ROE metres, repeatable, replacing the uplink's for that "
                  "target; 'none' drops every target's (default: the uplink's)");
-  app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES");
+  app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES, the reported "
+                 "covariance's upper triangle (m^2, space-separated)");
   CLI11_PARSE(app, argc, argv);
 
   const std::string up_path = run_dir + "/uplink/" + observer + ".json";
@@ -434,6 +443,7 @@ int run(int argc, char** argv) {
   tuning.adaptive_targets = adaptive_targets.value_or(tuning.adaptive_targets);
   tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
   tuning.drag_density_error = drag_density_error.value_or(tuning.drag_density_error);
+  tuning.ballistic_sigma_fraction = ballistic_sigma_fraction.value_or(tuning.ballistic_sigma_fraction);
   if (adaptive_time_constant_s && !(*adaptive_time_constant_s > 0.0))
     throw std::runtime_error("--adaptive-time-constant-s must be > 0 s (and at most 30 days), got 0");
   tuning.adaptive_time_constant_s = adaptive_time_constant_s.value_or(tuning.adaptive_time_constant_s);
@@ -582,7 +592,8 @@ int run(int argc, char** argv) {
     csv = std::fopen(csv_out.c_str(), "w");
     if (!csv) throw std::runtime_error("cannot write " + csv_out);
     std::fprintf(csv, "t_tt_ns,target,err_a_da_m,err_a_dlambda_m,err_a_dex_m,err_a_dey_m,err_a_dix_m,err_a_diy_m,"
-                      "sigma_a_da_m,sigma_a_dlambda_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_dix_m,sigma_a_diy_m,nees\n");
+                      "sigma_a_da_m,sigma_a_dlambda_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_dix_m,sigma_a_diy_m,nees,"
+                      "cov_upper_m2\n");
   }
   std::int64_t t0 = 0;
   double period_s = 0.0, a_m = 0.0;
@@ -601,9 +612,10 @@ int run(int argc, char** argv) {
     g.sigma_v_mps = sigma_v;
     if (!filter) {
       const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
+      sod::SodOptions options = fsw::sod_options(tuning, obs);
+      if (ballistic_walk) options.q_ballistic_m4pkg2ps *= std::pow(*ballistic_walk / tuning.ballistic_sigma_fraction, 2);
       filter = std::make_unique<sod::SodFilter>(forces, dynamics::SpacecraftProperties{},
-                                                dynamics::SpacecraftProperties{}, layout,
-                                                fsw::sod_options(tuning, obs));
+                                                dynamics::SpacecraftProperties{}, layout, options);
       Vec6 var_rv;
       var_rv << Eigen::Vector3d::Constant(sigma_r * sigma_r), Eigen::Vector3d::Constant(sigma_v * sigma_v);
       const Mat6 J = astro::jacobian_qns_from_cartesian(g.x_eci);
@@ -674,7 +686,11 @@ int run(int argc, char** argv) {
         std::fprintf(csv, "%lld,%s", static_cast<long long>(g.t.ns_since_j2000), id.c_str());
         for (int j = 0; j < 6; ++j) std::fprintf(csv, ",%.4f", d[j] * a_m);
         for (int j = 0; j < 6; ++j) std::fprintf(csv, ",%.4f", std::sqrt(Pk(j, j)) * a_m);
-        std::fprintf(csv, ",%.4f\n", nees);
+        // The reported a*ROE covariance (m^2), upper triangle row by row, for studies by principal direction.
+        std::fprintf(csv, ",%.4f,", nees);
+        for (int i = 0; i < 6; ++i)
+          for (int j = i; j < 6; ++j) std::fprintf(csv, "%s%.10e", i + j ? " " : "", Pk(i, j) * a_m * a_m);
+        std::fprintf(csv, "\n");
       }
     }
   }

@@ -97,7 +97,23 @@ def target_stats(per_seed, after_orbit, period_s):
              for s in seeds]
         z2.append(float(np.nanmean(np.square(z))))
     q3, q5 = chi2.ppf(0.9973, 6), chi2.ppf(1.0 - 5.733e-7, 6)
-    return {"runs": R, "band_95": [float(lo), float(hi)], "after_orbit": after_orbit, "steps": len(times),
+    by_direction = None
+    if "cov_upper_m2" in per_seed[seeds[0]][times[0]]:
+        # (error / 1-sigma)^2 along the reported covariance's principal directions, thinnest first (campaign.py's
+        # by_direction): 1 each when consistent; the six sum to the NEES.
+        iu = np.triu_indices(6)
+        zs = []
+        for s in seeds:
+            for t in times:
+                r = per_seed[s][t]
+                P = np.zeros((6, 6))
+                P[iu] = [float(x) for x in r["cov_upper_m2"].split()]
+                P = P + np.triu(P, 1).T
+                e = np.array([float(r[f"err_a_{n}_m"]) for n in ROE])
+                w, V = np.linalg.eigh(P)
+                zs.append((V.T @ e) ** 2 / w)
+        by_direction = [float(x) for x in np.mean(zs, axis=0)]
+    return {"mean_z2_per_principal_direction": by_direction,"runs": R, "band_95": [float(lo), float(hi)], "after_orbit": after_orbit, "steps": len(times),
             "frac_inside_band": float(np.mean((avg >= lo) & (avg <= hi))),
             "frac_above_band": float(np.mean(avg > hi)), "frac_below_band": float(np.mean(avg < lo)),
             "mean_nees": float(np.nanmean(avg)), "roe": list(ROE), "mean_z2_per_roe": z2,
@@ -168,6 +184,9 @@ def main(argv=None):
                   + " ".join(f"{x:10.2f}" for x in st["mean_z2_per_roe"])
                   + f"   {100 * st['worst_seed_frac_beyond_3sigma']:.1f} % / "
                     f"{100 * st['worst_seed_frac_beyond_5sigma']:.1f} %")
+            if st["mean_z2_per_principal_direction"]:
+                print(f"{'':<10} (error/1-sigma)^2 along the principal directions, thinnest first: "
+                      + " ".join(f"{x:.2f}" for x in st["mean_z2_per_principal_direction"]))
     with open(os.path.join(a.out, "replay_summary.json"), "w") as f:
         json.dump(summary, f, indent=1, sort_keys=True)
     for fl in failures:
