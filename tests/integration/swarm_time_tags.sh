@@ -56,9 +56,17 @@ for b in "2 2" "0.5 0.1"; do
   "$BIN/artms-sod-replay" "$WORK/starling_pse_flight" --ballistic-sigma-fraction $1 --ballistic-walk-fraction-per-day $2 \
     --csv "$WORK/ballistic_$1.csv" > /dev/null
 done
+# SOD-aided single detections given one 1-sigma of the command line's (a study): SV3, whose bearings are
+# nearly all aided at 155 km, ends wider with 3000".
+"$BIN/artms-sod-replay" "$WORK/starling_pse_flight" --aided-sigma-arcsec 3000 --csv "$WORK/aided.csv" > /dev/null
 /usr/bin/python3 - "$WORK" <<'PY'
 import csv, sys
 w = sys.argv[1]
+base = [r for r in csv.DictReader(open(f"{w}/ballistic_2.csv")) if r["target"] == "SV3"]
+wide = [r for r in csv.DictReader(open(f"{w}/aided.csv")) if r["target"] == "SV3"]
+b, a = float(base[-1]["sigma_a_dix_m"]), float(wide[-1]["sigma_a_dix_m"])
+print(f"replay: SV3's final a*dix 1-sigma {b:.2f} m, {a:.2f} m with its aided bearings at 3000 arcsec")
+assert len(base) == len(wide) and a > 1.05 * b, (b, a)
 last = {}
 for f in ("2", "0.5"):
     rows = [r for r in csv.DictReader(open(f"{w}/ballistic_{f}.csv")) if r["target"] == "SV2"]

@@ -383,6 +383,7 @@ int run(int argc, char** argv) {
   app.add_option("--adaptive-average", adaptive_average, "override tuning.sod.adaptive_average")
       ->check(CLI::IsMember({"clamped", "unclamped"}));
   std::optional<double> drag_density_error, adaptive_time_constant_s, ballistic_sigma_fraction, ballistic_walk;
+  std::optional<double> aided_sigma_arcsec;
   app.add_option("--adaptive-time-constant-s", adaptive_time_constant_s,
                  "override tuning.sod.adaptive_time_constant (s)")
       ->check(CLI::Range(0.0, config::SodTuning::kMaxAdaptiveTimeConstantS));
@@ -396,6 +397,10 @@ int run(int argc, char** argv) {
                  "modes 1 and 3, a study: the differential ballistic coefficient's random walk per day as a fraction "
                  "of the nominal Cd A/m, apart from its initial 1-sigma (default: sigma_fraction, as on board)")
       ->check(CLI::Range(0.0, 10.0));
+  app.add_option("--aided-sigma-arcsec", aided_sigma_arcsec,
+                 "modes 1 and 3, a study: every SOD-aided single detection (measurements.csv track_id -2 - k) "
+                 "given this 1-sigma (arcsec, attitude included) instead of IMP's")
+      ->check(CLI::Range(0.1, 3600.0));
   std::string target_lines;
   app.add_option("--target-lines", target_lines,
                  "override tuning.sod.target_lines: another observer's bearing of a target updates the relative orbits "
@@ -555,7 +560,9 @@ int run(int argc, char** argv) {
         }
       }
       Eigen::Vector3d u(m.number(r, "ux_eci"), m.number(r, "uy_eci"), m.number(r, "uz_eci"));
-      const double sigma = m.number(r, "sigma_rad");
+      double sigma = m.number(r, "sigma_rad");
+      // A study: SOD-aided single detections (track_id -2 - k) with one 1-sigma of the command line's.
+      if (aided_sigma_arcsec && m.integer(r, "track_id") <= -2) sigma = *aided_sigma_arcsec * M_PI / (180.0 * 3600.0);
       if (bearings_mode != "measured") {
         const auto tt = truth.find(ft.t_true_ns);
         if (tt == truth.end() || !tt->second.count(observer) || !tt->second.count(best_id))
