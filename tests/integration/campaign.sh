@@ -53,6 +53,11 @@ for k, t in c["targets"].items():
                for s in c["seeds"]]
     beyond3 = [v for v in beyond3 if v is not None]
     assert t["worst_seed_frac_beyond_3sigma"] == (max(beyond3) if beyond3 else None), (k, t["worst_seed_frac_beyond_3sigma"])
+    healthy5 = [json.load(open(f"{d}/seed_{s}/summary.json"))["observers"][obs]["targets"][tgt]
+                .get("longest_beyond_5sigma_reported_healthy_orbits") for s in c["seeds"]]
+    w = t["worst_seed_beyond_5sigma_reported_healthy"]
+    assert (w is None) == all(v is None for v in healthy5), (k, w, healthy5)
+    assert w is None or w["orbits"] == max(v for v in healthy5 if v is not None), (k, w, healthy5)
     assert t["convergence"]["never_converged"] == sum(v is None for v in t["convergence"]["per_seed"]), k
     for png in (f"campaign_nees_{obs}_{tgt}.png", f"campaign_error_{obs}_{tgt}.png"):
         assert os.path.getsize(f"{d}/{png}") > 0, png

@@ -603,6 +603,8 @@ def summarise(out, seeds, meta, failures):
             # Over-confidence at a glance: the worst seed's share of steps beyond 3 and 5 sigma.
             "worst_seed_frac_beyond_3sigma": _stats([t.get("frac_beyond_3sigma") for t in tg])["max"],
             "worst_seed_frac_beyond_5sigma": _stats([t.get("frac_beyond_5sigma") for t in tg])["max"],
+            # ... and the longest stretch any seed spent beyond 5 sigma while reporting the target healthy.
+            "worst_seed_beyond_5sigma_reported_healthy": worst_healthy_stretch(seeds, tg),
             "seeds_with_target": [s for s, t in zip(seeds, tg) if t and t.get("estimated", True)],
         })
         plot_errors(out, obs, tgt, seeds, tg)
@@ -645,6 +647,17 @@ DIRECTION_NOTE = ("Mean (error / 1-sigma)^2 over the runs and the steps after th
                   "covariance). Each is 1 for a consistent filter. A mean NEES inside the band with directions "
                   "well above and below 1 is a NEES that scatters more than chi2(6): the band test then fails on "
                   "both sides.")
+
+
+def worst_healthy_stretch(seeds, tg):
+    """The seed with the longest stretch beyond 5 sigma while reported healthy (summary.json's
+    longest_beyond_5sigma_reported_healthy_orbits): {seed, orbits}, or None when no seed reports one."""
+    best = None
+    for s, t in zip(seeds, tg):
+        v = (t or {}).get("longest_beyond_5sigma_reported_healthy_orbits")
+        if v is not None and (best is None or v > best["orbits"]):
+            best = {"seed": s, "orbits": float(v)}
+    return best
 
 
 def direction_entry(z_runs, p_runs, times, sel):
@@ -906,6 +919,11 @@ def print_table(s, out):
               f"{f(t['convergence']['max_orbits'], '{:.2f}'):>6} {t['convergence']['never_converged']:>5} "
               f"{f(nis and nis['mean_nis'], '{:.2f}'):>8} {f(nis and 100 * nis['frac_inside_band'], '{:.1f} %'):>10} "
               f"{f(w3 is not None and 100 * w3, '{:.1f} %'):>10} / {f(w5 is not None and 100 * w5, '{:.1f} %'):>8}")
+    for k, t in s["targets"].items():
+        w = t.get("worst_seed_beyond_5sigma_reported_healthy")
+        if w and w["orbits"] > 0.0:
+            print(f"{k}: seed {w['seed']} is beyond 5 sigma while reported healthy for {w['orbits']:.2f} orbits on end "
+                  f"(the longest of the seeds)")
     for k, t in s["targets"].items():
         c = t.get("common_to_every_seed")
         if c:
