@@ -621,8 +621,9 @@ int run(int argc, char** argv) {
       const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
       sod::SodOptions options = fsw::sod_options(tuning, obs);
       if (ballistic_walk) options.q_ballistic_m4pkg2ps *= std::pow(*ballistic_walk / tuning.ballistic_sigma_fraction, 2);
-      filter = std::make_unique<sod::SodFilter>(forces, dynamics::SpacecraftProperties{},
-                                                dynamics::SpacecraftProperties{}, layout, options);
+      // The observer's and each target's uplinked nominal properties, as the navigator flies them.
+      filter = std::make_unique<sod::SodFilter>(forces, up.onboard_properties(observer), layout,
+                                                fsw::target_nominal_properties(up, ids), options);
       Vec6 var_rv;
       var_rv << Eigen::Vector3d::Constant(sigma_r * sigma_r), Eigen::Vector3d::Constant(sigma_v * sigma_v);
       const Mat6 J = astro::jacobian_qns_from_cartesian(g.x_eci);

@@ -30,7 +30,7 @@ import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "python"))
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
-from artms_tools.runfolder import ROE_NAMES as ROE, RunFolderError, read_summary  # noqa: E402
+from artms_tools.runfolder import ROE_NAMES as ROE, RunFolderError, principal_z2, read_summary  # noqa: E402
 from campaign import run_epoch_tt_ns  # noqa: E402
 
 TAIL_LINES = 20
@@ -97,28 +97,21 @@ def target_stats(per_seed, after_orbit, period_s):
              for s in seeds]
         z2.append(float(np.nanmean(np.square(z))))
     q3, q5 = chi2.ppf(0.9973, 6), chi2.ppf(1.0 - 5.733e-7, 6)
+    # (error / 1-sigma)^2 along the reported covariance's principal directions, thinnest first (campaign.py's
+    # by_direction): 1 each when consistent; the six sum to the NEES.
     by_direction = None
     if "cov_upper_m2" in per_seed[seeds[0]][times[0]]:
-        # (error / 1-sigma)^2 along the reported covariance's principal directions, thinnest first (campaign.py's
-        # by_direction): 1 each when consistent; the six sum to the NEES.
-        iu = np.triu_indices(6)
-        zs = []
-        for s in seeds:
-            for t in times:
-                r = per_seed[s][t]
-                P = np.zeros((6, 6))
-                P[iu] = [float(x) for x in r["cov_upper_m2"].split()]
-                P = P + np.triu(P, 1).T
-                e = np.array([float(r[f"err_a_{n}_m"]) for n in ROE])
-                w, V = np.linalg.eigh(P)
-                zs.append((V.T @ e) ** 2 / w)
-        by_direction = [float(x) for x in np.mean(zs, axis=0)]
-    return {"mean_z2_per_principal_direction": by_direction,"runs": R, "band_95": [float(lo), float(hi)], "after_orbit": after_orbit, "steps": len(times),
+        zs = [principal_z2(r["cov_upper_m2"].split(), [float(r[f"err_a_{n}_m"]) for n in ROE])
+              for r in (per_seed[s][t] for s in seeds for t in times)]
+        zs = [z for z in zs if z is not None]
+        by_direction = [float(x) for x in np.mean(zs, axis=0)] if zs else None
+    return {"runs": R, "band_95": [float(lo), float(hi)], "after_orbit": after_orbit, "steps": len(times),
             "frac_inside_band": float(np.mean((avg >= lo) & (avg <= hi))),
             "frac_above_band": float(np.mean(avg > hi)), "frac_below_band": float(np.mean(avg < lo)),
             "mean_nees": float(np.nanmean(avg)), "roe": list(ROE), "mean_z2_per_roe": z2,
             "worst_seed_frac_beyond_3sigma": float(np.max(np.nanmean(nees > q3, axis=1))),
-            "worst_seed_frac_beyond_5sigma": float(np.max(np.nanmean(nees > q5, axis=1)))}
+            "worst_seed_frac_beyond_5sigma": float(np.max(np.nanmean(nees > q5, axis=1))),
+            "mean_z2_per_principal_direction": by_direction}
 
 
 def main(argv=None):

@@ -159,6 +159,22 @@ def target_normalised_errors(run_dir):
     return out
 
 
+def principal_z2(cov_upper, err):
+    """(error / 1-sigma)^2 along the principal directions of a 6x6 covariance given by its upper triangle row by
+    row (21 numbers, the units of err squared), thinnest direction first; their sum is the NEES. None when the
+    covariance is not positive definite."""
+    import numpy as np
+    P = np.zeros((6, 6))
+    P[np.triu_indices(6)] = [float(x) for x in cov_upper]
+    P = P + P.T - np.diag(np.diag(P))
+    if not np.all(np.isfinite(P)):
+        return None
+    w, V = np.linalg.eigh(P)
+    if not w[0] > 0:
+        return None
+    return [float(x) for x in (V.T @ np.asarray(err, dtype=float)) ** 2 / w]
+
+
 def target_principal_errors(run_dir):
     """Each target's error along its covariance's principal directions: {(observer, target): {t_tt_ns:
     [6 floats]}}, the squared error over the variance along each eigenvector of nav/targets.csv's ROE
@@ -173,25 +189,20 @@ def target_principal_errors(run_dir):
                   required=("observer", "target", "t_tt_ns") + tuple(f"err_a_{n}_m" for n in ROE_NAMES)
                   + tuple(f"sigma_a_{n}_m" for n in ROE_NAMES))
     errors = {(r["observer"], r["target"], r.int("t_tt_ns")): r for r in ev}
-    iu = np.triu_indices(6)
     out = {}
     for r in nav:
         e = errors.get((r["observer"], r["target"], r.int("t_tt_ns")))
         upper = (r["covariance_upper"] or "").split()
         if e is None or len(upper) != 21:
             continue
-        P = np.zeros((6, 6))
-        P[iu] = [float(x) for x in upper]
-        P = P + P.T - np.diag(np.diag(P))
         ratio = [e.float(f"sigma_a_{n}_m") / r.float(f"sigma_{n}") for n in ROE_NAMES
                  if r.float(f"sigma_{n}") > 0]
-        if not ratio or not np.all(np.isfinite(P)):
+        if not ratio:
             continue
         err = np.array([e.float(f"err_a_{n}_m") for n in ROE_NAMES]) / float(np.mean(ratio))
-        w, V = np.linalg.eigh(P)
-        if not w[0] > 0:
-            continue
-        out.setdefault((r["observer"], r["target"]), {})[r.int("t_tt_ns")] = [float(x) for x in (V.T @ err) ** 2 / w]
+        z2 = principal_z2(upper, err)
+        if z2 is not None:
+            out.setdefault((r["observer"], r["target"]), {})[r.int("t_tt_ns")] = z2
     return out
 
 
