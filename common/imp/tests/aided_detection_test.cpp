@@ -369,7 +369,6 @@ TEST(AidedDetection, AFlickeringTargetGetsAnHonestSigma) {
   EXPECT_LT(z2_post / hits, 1.2);
 }
 
-
 TEST(AidedDetection, SigmaOfAFarTargetBelowTheThresholdInTheOnboardModel) {
   // The flight-like PSE's SV3 (docs/sod.md, stop 50): forced SNR about 4,
   // flickering by 0.3 mag per frame, prediction 1-sigma 1 px, so that every
