@@ -382,7 +382,8 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"diagonal", "block"}));
   app.add_option("--adaptive-average", adaptive_average, "override tuning.sod.adaptive_average")
       ->check(CLI::IsMember({"clamped", "unclamped"}));
-  std::optional<double> drag_density_error, adaptive_time_constant_s, ballistic_sigma_fraction, ballistic_walk;
+  std::optional<double> drag_density_error, adaptive_time_constant_s, ballistic_sigma_fraction, ballistic_walk,
+      density_change;
   std::optional<double> aided_sigma_arcsec;
   app.add_option("--adaptive-time-constant-s", adaptive_time_constant_s,
                  "override tuning.sod.adaptive_time_constant (s)")
@@ -390,12 +391,17 @@ int run(int argc, char** argv) {
   app.add_option("--drag-density-error", drag_density_error, "override tuning.sod.drag_density_error")
       ->check(CLI::Range(0.0, 10.0));
   app.add_option("--ballistic-sigma-fraction", ballistic_sigma_fraction,
-                 "override tuning.sod.ballistic.sigma_fraction (each target's differential ballistic coefficient: "
-                 "initial 1-sigma and random walk per day, as a fraction of the nominal Cd A/m)")
+                 "override tuning.sod.ballistic.sigma_fraction (each target's differential ballistic coefficient's "
+                 "initial 1-sigma as a fraction of the nominal Cd A/m; also its random walk per day where the "
+                 "scenario sets no ballistic.walk_fraction_per_day)")
       ->check(CLI::Range(1e-6, 10.0));
   app.add_option("--ballistic-walk-fraction-per-day", ballistic_walk,
-                 "modes 1 and 3, a study: the differential ballistic coefficient's random walk per day as a fraction "
-                 "of the nominal Cd A/m, apart from its initial 1-sigma (default: sigma_fraction, as on board)")
+                 "override tuning.sod.ballistic.walk_fraction_per_day (the differential ballistic coefficient's random "
+                 "walk per day as a fraction of the nominal Cd A/m)")
+      ->check(CLI::Range(0.0, 10.0));
+  app.add_option("--ballistic-density-change-per-day", density_change,
+                 "override tuning.sod.ballistic.density_change_per_day (the density's relative change per day: "
+                 "dB walks by this x its estimated |dB| per day)")
       ->check(CLI::Range(0.0, 10.0));
   app.add_option("--aided-sigma-arcsec", aided_sigma_arcsec,
                  "modes 1 and 3, a study: every SOD-aided single detection (measurements.csv track_id -2 - k) "
@@ -449,6 +455,8 @@ int run(int argc, char** argv) {
   tuning.process_noise_scale = q_scale.value_or(tuning.process_noise_scale);
   tuning.drag_density_error = drag_density_error.value_or(tuning.drag_density_error);
   tuning.ballistic_sigma_fraction = ballistic_sigma_fraction.value_or(tuning.ballistic_sigma_fraction);
+  if (ballistic_walk) tuning.ballistic_walk_fraction_per_day = *ballistic_walk;
+  if (density_change) tuning.ballistic_density_change_per_day = *density_change;
   if (adaptive_time_constant_s && !(*adaptive_time_constant_s > 0.0))
     throw std::runtime_error("--adaptive-time-constant-s must be > 0 s (and at most 30 days), got 0");
   tuning.adaptive_time_constant_s = adaptive_time_constant_s.value_or(tuning.adaptive_time_constant_s);
@@ -620,7 +628,6 @@ int run(int argc, char** argv) {
     if (!filter) {
       const astro::QnsElements obs = astro::qns_from_cartesian(g.x_eci);
       sod::SodOptions options = fsw::sod_options(tuning, obs);
-      if (ballistic_walk) options.q_ballistic_m4pkg2ps *= std::pow(*ballistic_walk / tuning.ballistic_sigma_fraction, 2);
       // The observer's and each target's uplinked nominal properties, as the navigator flies them.
       filter = std::make_unique<sod::SodFilter>(forces, up.onboard_properties(observer), layout,
                                                 fsw::target_nominal_properties(up, ids), options);

@@ -1484,10 +1484,17 @@ class Parser {
           }
         }
         if (const Val* bv = sm.find("ballistic")) {
-          Map bm2(ctx_, *bv, {"estimate", "sigma_fraction"});
+          Map bm2(ctx_, *bv, {"estimate", "sigma_fraction", "walk_fraction_per_day", "density_change_per_day"});
           if (bm2.ok()) {
             bool_field(ctx_, bm2, "estimate", t.sod.estimate_ballistic);
             number_field(ctx_, bm2, "sigma_fraction", t.sod.ballistic_sigma_fraction, Range{0.0, 10.0, true, true});
+            if (bm2.find("walk_fraction_per_day")) {
+              double walk = 0.0;
+              number_field(ctx_, bm2, "walk_fraction_per_day", walk, Range{0.0, 10.0, false, true});
+              t.sod.ballistic_walk_fraction_per_day = walk;
+            }
+            number_field(ctx_, bm2, "density_change_per_day", t.sod.ballistic_density_change_per_day,
+                         Range{0.0, 10.0, false, false});
           }
         }
       }

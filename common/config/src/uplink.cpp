@@ -200,6 +200,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"time_tag_senders_sigma_s", u.tuning.sod.time_tag_senders_sigma_s},
           {"estimate_ballistic", u.tuning.sod.estimate_ballistic},
           {"ballistic_sigma_fraction", u.tuning.sod.ballistic_sigma_fraction},
+          {"ballistic_walk_fraction_per_day", u.tuning.sod.ballistic_walk()},
+          {"ballistic_density_change_per_day", u.tuning.sod.ballistic_density_change_per_day},
           {"observer_acceleration_sigma_mps2", u.tuning.sod.observer_acceleration_sigma_mps2},
           {"target_lines", u.tuning.sod.target_lines == SodTuning::TargetLines::kConsiderObserver
                                ? "consider_observer"
@@ -367,6 +369,12 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.sod.time_tag_senders_sigma_s = sod.value("time_tag_senders_sigma_s", 1.0);
     u.tuning.sod.estimate_ballistic = sod.at("estimate_ballistic").get<bool>();
     u.tuning.sod.ballistic_sigma_fraction = sod.at("ballistic_sigma_fraction").get<double>();
+    if (sod.contains("ballistic_walk_fraction_per_day")) {  // older uplinks: the walk is sigma_fraction
+      u.tuning.sod.ballistic_walk_fraction_per_day = sod.at("ballistic_walk_fraction_per_day").get<double>();
+    }
+    u.tuning.sod.ballistic_density_change_per_day = sod.value("ballistic_density_change_per_day", 0.0);  // older: off
+    if (!(u.tuning.sod.ballistic_density_change_per_day >= 0.0 && u.tuning.sod.ballistic_density_change_per_day <= 10.0))
+      throw std::runtime_error(path + ": tuning.sod.ballistic_density_change_per_day must be in [0, 10]");
     u.tuning.sod.observer_acceleration_sigma_mps2 = sod.value("observer_acceleration_sigma_mps2", 0.0);
     const std::string lines = sod.value("target_lines", std::string("consider_observer"));
     if (lines == "consider_observer") u.tuning.sod.target_lines = SodTuning::TargetLines::kConsiderObserver;

@@ -779,6 +779,33 @@ TEST(ScenarioLoad, AdaptiveTargetsDefaultsOnAndReachesTheUplink) {
              "tuning.sod.adaptive_targets", "");
 }
 
+// The ballistic state's random walk (docs/sod.md, "The ballistic walk from the
+// density's budget"): sigma_fraction unless set, the walk with |dB| off unless
+// set, both carried by the uplink, an out-of-range value named with its line.
+TEST(ScenarioLoad, BallisticWalkDefaultsToItsPriorAndReachesTheUplink) {
+  const Scenario d = load_scenario(
+      write_file("ballistic_walk_default.yaml", kValid + "tuning:\n  sod: {ballistic: {sigma_fraction: 1.5}}\n"));
+  EXPECT_FALSE(d.tuning.sod.ballistic_walk_fraction_per_day.has_value());
+  EXPECT_DOUBLE_EQ(d.tuning.sod.ballistic_walk(), 1.5);
+  EXPECT_EQ(d.tuning.sod.ballistic_density_change_per_day, 0.0);
+  const Scenario s = load_scenario(
+      write_file("ballistic_walk.yaml", kValid + "tuning:\n  sod: {ballistic: {estimate: true, walk_fraction_per_day: 0, "
+                                                 "density_change_per_day: 0.19}}\n"));
+  EXPECT_DOUBLE_EQ(s.tuning.sod.ballistic_sigma_fraction, 2.0);
+  EXPECT_DOUBLE_EQ(s.tuning.sod.ballistic_walk(), 0.0);
+  EXPECT_DOUBLE_EQ(s.tuning.sod.ballistic_density_change_per_day, 0.19);
+  const std::string up = ::testing::TempDir() + "/uplink_ballistic_walk.json";
+  write_uplink(make_uplink(s, "SV4"), up);
+  const ObserverUplink b = read_uplink(up);
+  EXPECT_DOUBLE_EQ(b.tuning.sod.ballistic_sigma_fraction, 2.0);
+  EXPECT_DOUBLE_EQ(b.tuning.sod.ballistic_walk(), 0.0);
+  EXPECT_DOUBLE_EQ(b.tuning.sod.ballistic_density_change_per_day, 0.19);
+  expect_one("ballistic_walk_bad.yaml", kValid + "tuning:\n  sod: {ballistic: {walk_fraction_per_day: -1}}\n", 13,
+             "tuning.sod.ballistic.walk_fraction_per_day", "out of range");
+  expect_one("ballistic_change_bad.yaml", kValid + "tuning:\n  sod: {ballistic: {density_change_per_day: 11}}\n", 13,
+             "tuning.sod.ballistic.density_change_per_day", "out of range");
+}
+
 TEST(ScenarioValidation, UnknownOrSelfTargetsAreNamed) {
   const std::string path =
       write_file("targets.yaml", kValid + "    mode: 2\n    targets: [SV9, SV4]\n  - spacecraft: SV2\n    mode: 3\n");

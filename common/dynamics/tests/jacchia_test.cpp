@@ -220,10 +220,10 @@ TEST(Jacchia, SemiannualFactorAveragesToOneWithJulyMinimumAndOctoberMaximum) {
 // space weather and by 23 % with a day-to-day F10.7 of +-20 sfu and Kp of
 // +-1 (1-sigma), what a ground without the coming days' weather expects.
 // Most of the weather's part is slow: about the running mean over one orbit
-// the ratio scatters by 12 % and 14 %. The slow part is the ballistic
-// state's random walk (a target's Cd A/m times the density's day-to-day
-// error); the floor's white noise, correlated over one orbit, takes the
-// part within an orbit. With the empirical models' own error against
+// the ratio scatters by 12 % and 14 %. The slow part, sqrt(23^2 - 14^2) =
+// 19 %, is the ballistic state's random walk (the difference of the two Cd
+// A/m times the density's day-to-day error); the floor's white noise,
+// correlated over one orbit, takes the part within an orbit. With the empirical models' own error against
 // measured densities, about 15 % (Montenbruck & Gill 2000, section 3.5),
 // kept whole, in quadrature: 0.20 (0.27 -> 0.3 until stop 44, which counted
 // the day-to-day weather twice).
@@ -272,6 +272,12 @@ TEST(DensityBudget, RicherAtmosphereAgainstHarrisPriesterAlongTheStarlingOrbit) 
   EXPECT_NEAR(constant_orbit, 0.12, 0.02);
   EXPECT_NEAR(varied_orbit, 0.14, 0.02);
   EXPECT_NEAR(std::hypot(varied_orbit, 0.15), 0.20, 0.02);
+  // The slow part, the orbit means' scatter from day to day: the ballistic
+  // walk's density_change_per_day (docs/sod.md, "The ballistic walk from the
+  // density's budget").
+  const double slow = std::sqrt(varied * varied - varied_orbit * varied_orbit);
+  std::printf("slow part (orbit means, day to day): %.3f\n", slow);
+  EXPECT_NEAR(slow, 0.19, 0.02);
 }
 
 TEST(SpaceWeather, DailyListThenSeededVariationDeterministically) {

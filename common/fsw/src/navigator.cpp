@@ -103,6 +103,7 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
                            : sod::AdaptiveNoiseAverage::kClamped;
   o.q_target_a_roe_m2ps *= t.process_noise_scale;
   o.adaptive.drag_density_error = t.drag_density_error;
+  o.adaptive.density_change_per_day = t.ballistic_density_change_per_day;
   o.adaptive.time_constant_s = t.adaptive_time_constant_s;
   o.health.nis_window = t.nis_window;
   if (t.nis_window > 0) o.health.nis_max_mean = sod::chi2_quantile(2 * t.nis_window, 1.0 - t.nis_false_alarm) / t.nis_window;
@@ -116,10 +117,11 @@ sod::SodOptions sod_options(const config::SodTuning& t) {
   o.health.gnss_bias_max = sod::chi2_quantile(6, 1.0 - t.nis_false_alarm / 1440.0);
   // Auxiliary random walks: the offset wanders by 1 ms and the drift by 1 ppm
   // per day; a target's effective ballistic coefficient (the density's
-  // day-to-day error times Cd A/m) by its initial 1-sigma per day.
+  // day-to-day error times Cd A/m) by ballistic.walk_fraction_per_day of the
+  // nominal per day, plus density_change_per_day of its |dB| (in SodFilter).
   o.q_time_tag_offset_s2ps = 1e-6 / 86400.0;
   o.q_time_tag_drift_ps = 1e-12 / 86400.0;
-  o.q_ballistic_m4pkg2ps = std::pow(t.ballistic_sigma_fraction * nominal_ballistic_m2pkg(), 2) / 86400.0;
+  o.q_ballistic_m4pkg2ps = std::pow(t.ballistic_walk() * nominal_ballistic_m2pkg(), 2) / 86400.0;
   o.target_to_target_consider_observer = t.target_lines == config::SodTuning::TargetLines::kConsiderObserver;
   o.validate();
   return o;

@@ -211,6 +211,25 @@ std::pair<std::size_t, std::uint32_t> blend_run(bool aligned, double fx_px) {
   return {nav.blended_measurements(), nav.report(truth.t()).targets[0].local_measurements};
 }
 
+// The ballistic state's random walk follows ballistic.walk_fraction_per_day,
+// its prior sigma_fraction: with the walk at a fifth of the prior the rate
+// is a 25th, and without the key the two are one figure; the walk with |dB|
+// reaches the filter's options.
+TEST(NavigatorTuning, BallisticWalkIsSetApartFromItsPrior) {
+  config::SodTuning t;
+  t.estimate_ballistic = true;
+  t.ballistic_sigma_fraction = 2.0;
+  const double q_prior = sod_options(t).q_ballistic_m4pkg2ps;
+  EXPECT_GT(q_prior, 0.0);
+  t.ballistic_walk_fraction_per_day = 0.4;
+  EXPECT_NEAR(sod_options(t).q_ballistic_m4pkg2ps / q_prior, 0.04, 1e-12);
+  t.ballistic_walk_fraction_per_day = 0.0;
+  EXPECT_EQ(sod_options(t).q_ballistic_m4pkg2ps, 0.0);
+  EXPECT_EQ(sod_options(t).adaptive.density_change_per_day, 0.0);
+  t.ballistic_density_change_per_day = 0.19;  // the walk with |dB|, applied by SodFilter
+  EXPECT_EQ(sod_options(t).adaptive.density_change_per_day, 0.19);
+}
+
 // A target's uplinked gravity budget (a*ROE 1-sigma, m) is added to its
 // reported covariance and nowhere else: the same run with and without it
 // reports the same estimates, and covariances that differ by exactly

@@ -86,6 +86,9 @@ void SodOptions::validate() const {
   require(std::isfinite(adaptive.drag_density_error) && adaptive.drag_density_error >= 0.0 &&
               adaptive.drag_density_error <= 10.0,
           "adaptive.drag_density_error", "must be in [0, 10]");
+  require(std::isfinite(adaptive.density_change_per_day) && adaptive.density_change_per_day >= 0.0 &&
+              adaptive.density_change_per_day <= 10.0,
+          "adaptive.density_change_per_day", "must be in [0, 10]");
   require(bearing_gate_mahalanobis > 0.0, "bearing_gate_mahalanobis", "must be > 0 (inf disables)");
   require(bearing_underweighting >= 0.0 && std::isfinite(bearing_underweighting), "bearing_underweighting", "must be >= 0");
   require(bearing_underweighting_nonlinearity >= 0.0 && std::isfinite(bearing_underweighting_nonlinearity),
@@ -329,21 +332,24 @@ bool SodFilter::sigma_points(MatrixXd& X) const {
 }
 
 VectorXd SodFilter::drag_floor_rates() const {
-  // The drag floor of each target (docs/sod.md, "The drag floor"), in the nominal's units.
+  // The drag floor of each target (docs/sod.md, "The drag floor") and its
+  // ballistic walk from the density's day-to-day change, in the nominal's units.
   const AdaptiveNoiseOptions& o = options_.adaptive;
   VectorXd floor_add = VectorXd::Zero(layout_.size());
-  if (o.drag_density_error > 0.0 && layout_.ballistic && layout_.n_targets > 0) {
-    const QnsElements obs = QnsElements::from_vector(x_.head<6>());
-    const astro::StateVector xo = astro::cartesian_from_qns(obs, gm_m3ps2_);
-    const double f_t = std::abs((astro::R_rtn_from_eci(xo) * forces_.unit_ballistic_drag_eci(t_, xo))[1]);
-    const double period_s = astro::orbit_period_s(obs.a_m);
-    for (int k = 0; k < layout_.n_targets; ++k) {
-      // |dB| estimated without the estimate's own spread: E[dB^2] = dB_true^2 + sigma_B^2.
-      const int ib = layout_.ballistic_index(k);
-      const double db = std::sqrt(std::max(x_[ib] * x_[ib] - P_(ib, ib), 0.0));
+  if (!has_drag_budget() || !layout_.ballistic || layout_.n_targets == 0) return floor_add;
+  const QnsElements obs = QnsElements::from_vector(x_.head<6>());
+  const astro::StateVector xo = astro::cartesian_from_qns(obs, gm_m3ps2_);
+  const double f_t = std::abs((astro::R_rtn_from_eci(xo) * forces_.unit_ballistic_drag_eci(t_, xo))[1]);
+  const double period_s = astro::orbit_period_s(obs.a_m);
+  for (int k = 0; k < layout_.n_targets; ++k) {
+    // |dB| estimated without the estimate's own spread: E[dB^2] = dB_true^2 + sigma_B^2.
+    const int ib = layout_.ballistic_index(k);
+    const double db = std::sqrt(std::max(x_[ib] * x_[ib] - P_(ib, ib), 0.0));
+    if (o.drag_density_error > 0.0) {
       const double sigma = o.drag_density_error * db * f_t;
       floor_add.segment<6>(layout_.target_offset(k)) = target_along_track_process_noise(obs.a_m, sigma, period_s);
     }
+    floor_add[ib] = std::pow(o.density_change_per_day * db, 2) / 86400.0;
   }
   return floor_add;
 }
@@ -363,7 +369,7 @@ void SodFilter::adapt_process_noise() {
     pending_dxdx_.setZero();
     pending_ = false;
     pending_dt_s_ = 0.0;
-    if (o.drag_density_error > 0.0) {
+    if (has_drag_budget()) {
       q_ = budget;
       Q_rate_ = q_.asDiagonal();
     }

@@ -394,6 +394,63 @@ TEST(SodProcessNoise, TargetAlongTrackNoiseThroughGaussEquations) {
   EXPECT_THROW(target_along_track_process_noise(a, -1.0, tau), std::invalid_argument);
 }
 
+// Two targets at 450 km with ballistic states, the first estimated at
+// dB = 2 B, the second at 0 (1-sigma B each, B the nominal Cd A/m): a time
+// update to 60 s, a GNSS fix 5 m off in x, and the time update to 120 s at
+// whose start the rates are set. x_seen, P_seen: what that adaptation saw.
+struct BallisticRun {
+  std::unique_ptr<SodFilter> filter;
+  VectorXd x_seen;
+  MatrixXd P_seen;
+};
+SodOptions block_unclamped_options(bool adaptive, bool targets) {
+  SodOptions o;
+  o.adaptive.enabled = adaptive;
+  o.adaptive.targets = targets;
+  o.adaptive.form = AdaptiveNoiseForm::kBlock;
+  o.adaptive.average = AdaptiveNoiseAverage::kUnclamped;
+  return o;
+}
+StateLayout two_ballistic_targets_layout() {
+  StateLayout layout{2, 0};
+  layout.ballistic = true;
+  return layout;
+}
+astro::QnsElements observer_at_450_km() {
+  astro::QnsElements obs = testing::observer_at_start();
+  obs.a_m = astro::kRadiusEarth_m + 450e3;
+  return obs;
+}
+BallisticRun run_two_ballistic_targets(const SodOptions& o, const StateLayout& layout, const astro::QnsElements& obs) {
+  const dynamics::SpacecraftProperties nominal;
+  const double B = nominal.cd * nominal.drag_area_m2 / nominal.mass_kg;
+  BallisticRun r;
+  r.filter = std::make_unique<SodFilter>(j2_drag_forces(), nominal, nominal, layout, o);
+  VectorXd x = VectorXd::Zero(layout.size());
+  x.head<6>() = obs.as_vector();
+  for (int k = 0; k < 2; ++k) {
+    x.segment<6>(layout.target_offset(k)) = Roe::from_scaled_m(testing::starling_a_roe_m()[k], obs.a_m).as_vector();
+  }
+  x[layout.ballistic_index(0)] = 2.0 * B;
+  MatrixXd P = MatrixXd::Identity(layout.size(), layout.size()) * 1e-12;
+  P(0, 0) = 100.0;
+  P(layout.ballistic_index(0), layout.ballistic_index(0)) = P(layout.ballistic_index(1), layout.ballistic_index(1)) =
+      B * B;
+  r.filter->initialize(kT0, x, P);
+  EXPECT_TRUE(r.filter->time_update(kT0.plus_seconds(60.0)).usable);
+  GnssMeasurement gm;
+  gm.t = kT0.plus_seconds(60.0);
+  gm.x_eci = astro::cartesian_from_qns(astro::QnsElements::from_vector(r.filter->state().head<6>()));
+  gm.x_eci.r_m[0] += 5.0;
+  gm.sigma_r_m = 3.0;
+  gm.sigma_v_mps = 0.01;
+  EXPECT_TRUE(r.filter->update_gnss(gm).usable);
+  r.x_seen = r.filter->state();
+  r.P_seen = r.filter->covariance();
+  EXPECT_TRUE(r.filter->time_update(kT0.plus_seconds(120.0)).usable);
+  return r;
+}
+
 // The drag floor (docs/sod.md): a target estimated with a differential
 // ballistic coefficient of twice the nominal Cd A/m gets, after an adaptive
 // step, a process noise at least floor x nominal + the unmodelled drag's
@@ -407,44 +464,17 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   const dynamics::ForceModel& drag_forces = j2_drag_forces();
   const dynamics::SpacecraftProperties nominal;
   const double B = nominal.cd * nominal.drag_area_m2 / nominal.mass_kg, error = 0.5;
-  StateLayout layout{2, 0};
-  layout.ballistic = true;
-  astro::QnsElements obs = testing::observer_at_start();
-  obs.a_m = astro::kRadiusEarth_m + 450e3;
+  const StateLayout layout = two_ballistic_targets_layout();
+  const astro::QnsElements obs = observer_at_450_km();
   VectorXd x_seen;  // the state and covariance the adaptation sees: after the update at 60 s
   MatrixXd P_seen;
   const auto run = [&](double density_error, bool adaptive = true, bool targets = true) {
-    SodOptions o;
-    o.adaptive.enabled = adaptive;
-    o.adaptive.targets = targets;
-    o.adaptive.form = AdaptiveNoiseForm::kBlock;
-    o.adaptive.average = AdaptiveNoiseAverage::kUnclamped;
+    SodOptions o = block_unclamped_options(adaptive, targets);
     o.adaptive.drag_density_error = density_error;
-    auto f = std::make_unique<SodFilter>(drag_forces, nominal, nominal, layout, o);
-    VectorXd x = VectorXd::Zero(layout.size());
-    x.head<6>() = obs.as_vector();
-    for (int k = 0; k < 2; ++k) {
-      x.segment<6>(layout.target_offset(k)) = Roe::from_scaled_m(testing::starling_a_roe_m()[k], obs.a_m).as_vector();
-    }
-    x[layout.ballistic_index(0)] = 2.0 * B;
-    MatrixXd P = MatrixXd::Identity(layout.size(), layout.size()) * 1e-12;
-    P(0, 0) = 100.0;
-    P(layout.ballistic_index(0), layout.ballistic_index(0)) = P(layout.ballistic_index(1), layout.ballistic_index(1)) =
-        B * B;
-    f->initialize(kT0, x, P);
-    EXPECT_TRUE(f->time_update(kT0.plus_seconds(60.0)).usable);
-    GnssMeasurement gm;
-    gm.t = kT0.plus_seconds(60.0);
-    gm.x_eci = astro::cartesian_from_qns(astro::QnsElements::from_vector(f->state().head<6>()));
-    gm.x_eci.r_m[0] += 5.0;
-    gm.sigma_r_m = 3.0;
-    gm.sigma_v_mps = 0.01;
-    EXPECT_TRUE(f->update_gnss(gm).usable);
-    x_seen = f->state();
-    P_seen = f->covariance();
-    // The adaptation is applied at the start of the next time update.
-    EXPECT_TRUE(f->time_update(kT0.plus_seconds(120.0)).usable);
-    return f;
+    BallisticRun r = run_two_ballistic_targets(o, layout, obs);
+    x_seen = r.x_seen;
+    P_seen = r.P_seen;
+    return std::move(r.filter);
   };
   const auto with = run(error), without = run(0.0);
   const MatrixXd& Q = with->process_noise_rate_matrix();
@@ -489,6 +519,35 @@ TEST(SodAdaptiveNoise, DragFloorFollowsTheEstimatedBallisticCoefficient) {
   EXPECT_EQ(Mat6(Qo.block<6, 6>(off1, off1)), Mat6(Qf.block<6, 6>(off1, off1)));
   EXPECT_EQ(Mat6(Qo.topLeftCorner<6, 6>()), Mat6(Q.topLeftCorner<6, 6>()));
   EXPECT_NE(Mat6(Qo.topLeftCorner<6, 6>()), Mat6(Qf.topLeftCorner<6, 6>()));  // the observer did adapt
+}
+
+// The ballistic walk from the density's day-to-day change (docs/sod.md, "The
+// ballistic walk from the density's budget"): with no constant walk, a target
+// estimated at dB = 2 B (1-sigma B) walks by change x sqrt(dB^2 - sigma_B^2)
+// per day after an adaptive step, one estimated at 0 does not walk; the same
+// with the adaptation off, and nothing walks when the option is 0.
+TEST(SodAdaptiveNoise, BallisticWalkFollowsTheEstimatedBallisticCoefficient) {
+  const dynamics::SpacecraftProperties nominal;
+  const double B = nominal.cd * nominal.drag_area_m2 / nominal.mass_kg, change = 0.2;
+  const StateLayout layout = two_ballistic_targets_layout();
+  const astro::QnsElements obs = observer_at_450_km();
+  const auto run = [&](double density_change, bool adaptive) {
+    SodOptions o = block_unclamped_options(adaptive, false);
+    o.adaptive.density_change_per_day = density_change;
+    o.q_ballistic_m4pkg2ps = 0.0;
+    return run_two_ballistic_targets(o, layout, obs);
+  };
+  const int ib0 = layout.ballistic_index(0), ib1 = layout.ballistic_index(1);
+  for (const bool adaptive : {true, false}) {
+    const BallisticRun with = run(change, adaptive);
+    const double db = std::sqrt(with.x_seen[ib0] * with.x_seen[ib0] - with.P_seen(ib0, ib0));
+    EXPECT_NEAR(db, std::sqrt(3.0) * B, 0.01 * B) << adaptive;
+    const MatrixXd& Q = with.filter->process_noise_rate_matrix();
+    EXPECT_NEAR(Q(ib0, ib0), std::pow(change * db, 2) / 86400.0, 1e-9 * std::pow(change * db, 2) / 86400.0)
+        << adaptive;
+    EXPECT_EQ(Q(ib1, ib1), 0.0) << adaptive;  // dB = 0: the true difference is not known to be other than 0
+    EXPECT_EQ(run(0.0, adaptive).filter->process_noise_rate_matrix()(ib0, ib0), 0.0) << adaptive;
+  }
 }
 
 // Each target flies its own uplinked nominal: a target with five times the

@@ -239,6 +239,13 @@ struct SodTuning {
   // true one times the density's error, and Harris-Priester's mean table is
   // 2-4 x too thin at high solar activity (docs/sod.md).
   double ballistic_sigma_fraction = 2.0;
+  // Its constant random walk per day over the nominal Cd A/m (docs/sod.md,
+  // "The ballistic walk from the density's budget"). Unset: sigma_fraction.
+  std::optional<double> ballistic_walk_fraction_per_day;
+  double ballistic_walk() const { return ballistic_walk_fraction_per_day.value_or(ballistic_sigma_fraction); }
+  // The density's relative change from day to day: dB walks by this x its
+  // estimated |dB| per day on top of the walk above (0: off).
+  double ballistic_density_change_per_day = 0.0;
   // The onboard model's unmodelled acceleration on the observer's own orbit
   // (1-sigma per RTN axis, m/s^2; correlated over one orbit): the observer's
   // process noise where it exceeds the built-in one (sod::

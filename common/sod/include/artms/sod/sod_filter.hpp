@@ -78,6 +78,12 @@ struct AdaptiveNoiseOptions {
   // (Gauss, correlated over one orbit) is added to the floor of the target's
   // adaptive process noise (docs/sod.md, "The drag floor").
   double drag_density_error = 0.0;
+  // The onboard density's expected relative change from day to day (0: off).
+  // The effective dB is the true difference of the two Cd A/m times the
+  // density's error, so it walks by this x sqrt(max(dB^2 - sigma_B^2, 0)) per
+  // day; added to the floor of each target's ballistic rate (docs/sod.md,
+  // "The ballistic walk from the density's budget").
+  double density_change_per_day = 0.0;
 };
 
 // Thresholds of the paper's four health checks.
@@ -480,9 +486,13 @@ class SodFilter {
   // Time update to a measurement epoch; false with s.why set on failure.
   bool advance_to(TimeTT t, UpdateSummary& s);
   void adapt_process_noise();
-  // Each target's drag floor rate (docs/sod.md, "The drag floor"); zero
-  // without drag_density_error or ballistic states.
+  // Each target's drag floor rate (docs/sod.md, "The drag floor") and its
+  // ballistic walk (density_change_per_day); zero without either or without
+  // ballistic states.
   [[nodiscard]] Eigen::VectorXd drag_floor_rates() const;
+  [[nodiscard]] bool has_drag_budget() const {
+    return options_.adaptive.drag_density_error > 0.0 || options_.adaptive.density_change_per_day > 0.0;
+  }
   // Dynamics of the named auxiliary states over dt on propagated sigma points
   // Y (columns of X before the step): time-tag drift, differential drag.
   void apply_aux_dynamics(const MatrixXd& X, MatrixXd& Y, double dt_s) const;
