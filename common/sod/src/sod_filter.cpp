@@ -338,9 +338,13 @@ VectorXd SodFilter::drag_floor_rates() const {
   VectorXd floor_add = VectorXd::Zero(layout_.size());
   if (!has_drag_budget() || !layout_.ballistic || layout_.n_targets == 0) return floor_add;
   const QnsElements obs = QnsElements::from_vector(x_.head<6>());
-  const astro::StateVector xo = astro::cartesian_from_qns(obs, gm_m3ps2_);
-  const double f_t = std::abs((astro::R_rtn_from_eci(xo) * forces_.unit_ballistic_drag_eci(t_, xo))[1]);
-  const double period_s = astro::orbit_period_s(obs.a_m);
+  // The onboard drag per unit B at the observer: only the floor needs it.
+  double f_t = 0.0, period_s = 0.0;
+  if (o.drag_density_error > 0.0) {
+    const astro::StateVector xo = astro::cartesian_from_qns(obs, gm_m3ps2_);
+    f_t = std::abs((astro::R_rtn_from_eci(xo) * forces_.unit_ballistic_drag_eci(t_, xo))[1]);
+    period_s = astro::orbit_period_s(obs.a_m);
+  }
   for (int k = 0; k < layout_.n_targets; ++k) {
     // |dB| estimated without the estimate's own spread: E[dB^2] = dB_true^2 + sigma_B^2.
     const int ib = layout_.ballistic_index(k);
