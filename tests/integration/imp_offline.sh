@@ -10,7 +10,10 @@ rm -rf "$WORK"; mkdir -p "$WORK"
   --out "$WORK/frames" 2> "$WORK/render.err"
 # A corrupt frame in the middle of the sequence.
 printf 'not a png' > "$WORK/frames/frame_000999.png"
-"$BIN/artms-imp" "$SRC/config/cameras/nst.yaml" "$WORK/frames" --out "$WORK/imp" 2> "$WORK/imp.err"
+# --observer-orbit: the frames' stars carry the observer's stellar aberration
+# (up to ~26"), which artms-imp takes out of the attitude with its velocity.
+"$BIN/artms-imp" "$SRC/config/cameras/nst.yaml" "$WORK/frames" --observer-orbit "$WORK/frames/observer_orbit.csv" \
+  --out "$WORK/imp" 2> "$WORK/imp.err"
 grep -q "skipping .*frame_000999.png" "$WORK/imp.err" || { echo "FAIL: corrupt frame not reported"; cat "$WORK/imp.err"; exit 1; }
 grep -q "^999,.*,corrupt," "$WORK/imp/attitude.csv" || { echo "FAIL: corrupt frame not in attitude.csv"; exit 1; }
 /usr/bin/python3 "$SRC/tools/artms_imp/evaluate_imp.py" "$WORK/frames" "$WORK/imp" --json "$WORK/eval.json"

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <string>
 
+#include "artms/astro/aberration.hpp"
 #include "artms/astro/elements.hpp"
 #include "artms/astro/frames.hpp"
 #include "artms/astro/time.hpp"
@@ -103,6 +104,30 @@ TEST(OracleEarthRotation, GmstMatchesErfaGmst82) {
   EXPECT_LT(max_err, 5e-9);  // 1 mas: double rounding of the UT1 Julian date
   std::printf("[oracle-erfa] gmst82: %zu cases, max difference %.3e rad\n", j["gmst_cases"].size(),
               max_err);
+}
+
+// Stellar aberration against ERFA's ab (first order in v/c plus the
+// second-order terms; ERFA's 1e-8 relative light-deflection factor is the
+// only term it has and ours has not): 0.001" is 1/20000 of the largest shift.
+TEST(OracleAberration, ApparentDirectionMatchesErfaAb) {
+  nlohmann::json j;
+  if (!load_cases("erfa_aberration_cases.json", j)) GTEST_SKIP() << "ERFA aberration cases missing";
+  double max_err = 0, max_shift = 0;
+  for (const auto& c : j["cases"]) {
+    Vec3 u, v, ref;
+    for (int k = 0; k < 3; ++k) {
+      u[k] = c["u"][k].get<double>();
+      v[k] = c["v_mps"][k].get<double>();
+      ref[k] = c["apparent"][k].get<double>();
+    }
+    const Vec3 app = aberrated_direction(u, v);
+    max_err = std::max(max_err, std::atan2(app.cross(ref).norm(), app.dot(ref)));
+    max_shift = std::max(max_shift, std::atan2(app.cross(u).norm(), app.dot(u)));
+  }
+  EXPECT_LT(max_err, 0.001 * kArcsecToRad);
+  EXPECT_GT(max_shift, 30.0 * kArcsecToRad);  // the cases do reach large shifts
+  std::printf("[oracle-erfa] ab: %zu cases, shifts up to %.2f arcsec, max difference %.2e arcsec\n",
+              j["cases"].size(), max_shift / kArcsecToRad, max_err / kArcsecToRad);
 }
 
 }  // namespace

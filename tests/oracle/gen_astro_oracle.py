@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Independent references for common/astro, computed with Debian's poliastro
-(Keplerian -> Cartesian) and pyerfa (IAU 1976 precession, IAU 1982 GMST).
+(Keplerian -> Cartesian) and pyerfa (IAU 1976 precession, IAU 1982 GMST,
+stellar aberration).
 
-Writes OUT_DIR/kepler_poliastro_cases.json and OUT_DIR/erfa_earth_rotation_cases.json.
+Writes OUT_DIR/kepler_poliastro_cases.json, OUT_DIR/erfa_earth_rotation_cases.json
+and OUT_DIR/erfa_aberration_cases.json.
 Exit code 77 (ctest SKIP_RETURN_CODE) when the oracle packages are missing.
 """
 import json
@@ -61,6 +63,23 @@ def erfa_cases(rng, count):
     return cases
 
 
+def aberration_cases(rng, count):
+    """erfa.ab: a unit direction seen from an observer moving at v (units of c),
+    1 au from the Sun. Speeds up to 60 km/s (an observer in LEO about the Sun:
+    about 38 km/s)."""
+    c = 299792458.0
+    cases = []
+    for _ in range(count):
+        u = np.array([rng.uniform(-1, 1) for _ in range(3)])
+        u /= np.linalg.norm(u)
+        v = np.array([rng.uniform(-1, 1) for _ in range(3)])
+        v *= rng.uniform(0.0, 60000.0) / np.linalg.norm(v)
+        b = v / c
+        ppr = erfa.ab(u, b, 1.0, math.sqrt(1.0 - b @ b))
+        cases.append({"u": u.tolist(), "v_mps": v.tolist(), "apparent": (ppr / np.linalg.norm(ppr)).tolist()})
+    return cases
+
+
 def main():
     out_dir = sys.argv[1] if len(sys.argv) > 1 else "."
     rng = np.random.default_rng(20240508)
@@ -96,6 +115,10 @@ def main():
     ero["gmst_cases"] = gm
     with open(f"{out_dir}/erfa_earth_rotation_cases.json", "w") as f:
         json.dump(ero, f)
+    ab = {"source": f"pyerfa {erfa.__version__}: ab (stellar aberration, observer 1 au from the Sun)",
+          "cases": aberration_cases(r, 500)}
+    with open(f"{out_dir}/erfa_aberration_cases.json", "w") as f:
+        json.dump(ab, f)
     print(f"wrote {len(kep['cases'])} Kepler cases and {len(ero['cases'])}+{len(gm)} ERFA cases to {out_dir}")
 
 

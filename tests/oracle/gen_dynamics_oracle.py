@@ -9,7 +9,8 @@ The project's J2 acts about the ECEF z axis, which is the mean pole of date
 of the epoch (ERFA pmat76) and rotates the results back to J2000. The pole
 moves by ~3e-7 rad during the day; its effect is far below the 1 m tolerance.
 
-Writes OUT_DIR/sv4_j2_poliastro.json. Exit 77 when packages are missing.
+Writes OUT_DIR/sv4_j2_poliastro.json and OUT_DIR/erfa_earth_velocity_cases.json
+(the Earth's barycentric velocity, ERFA epv00). Exit 77 when packages are missing.
 """
 import json
 import math
@@ -66,6 +67,18 @@ def main():
     with open(f"{out_dir}/sv4_j2_poliastro.json", "w") as fh:
         json.dump(out, fh)
     print(f"wrote {len(cases)} SV4 J2 states to {out_dir}")
+    # The Earth's barycentric velocity (ERFA epv00), 1990-2040, for
+    # dynamics::earth_velocity_bcrs_mps (stellar aberration).
+    rng = np.random.default_rng(20241205)
+    ev = []
+    for jd in rng.uniform(2447892.5, 2466154.5, 200):
+        _, pvb = erfa.epv00(2451545.0, float(jd) - 2451545.0)
+        ev.append({"tt_s_since_j2000": (float(jd) - 2451545.0) * 86400.0,
+                   "v_mps": (pvb[1] * 149597870700.0 / 86400.0).tolist()})
+    with open(f"{out_dir}/erfa_earth_velocity_cases.json", "w") as fh:
+        json.dump({"source": f"pyerfa {erfa.__version__}: epv00 barycentric velocity of the Earth (BCRS)",
+                   "cases": ev}, fh)
+    print(f"wrote {len(ev)} Earth velocities to {out_dir}")
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@
 
 #include "artms/astro/bearing.hpp"
 #include "artms/astro/constants.hpp"
+#include "artms/dynamics/ephemeris.hpp"
 #include "artms/imaging/camera.hpp"
 #include "artms/imaging/image.hpp"
 #include "artms/imaging/star_catalog.hpp"
@@ -98,6 +99,14 @@ int run(int argc, char** argv) {
   app.add_option("--observer-orbit", orbit_path,
                  "CSV with t_tt_ns,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps: a coarse observer orbit for SAMUS\n"
                  "(artms-render's observer_orbit.csv, or a run's nav/<id>.csv); without it no tracking");
+  std::string aberration = "auto";
+  app.add_option("--aberration", aberration,
+                 "stellar aberration of the catalog before the attitude is solved: off (an astrometric attitude, as\n"
+                 "tetra3's and most ground solutions), earth (the Earth's velocity about the Sun at the frame time: a\n"
+                 "ground camera), orbit (the Earth's plus --observer-orbit's: a spacecraft); auto: orbit with\n"
+                 "--observer-orbit, otherwise off")
+      ->check(CLI::IsMember({"auto", "off", "earth", "orbit"}))
+      ->capture_default_str();
   imp::SamusOptions samus_opt;
   app.add_option("--dbscan-min-points", samus_opt.dbscan_min_points, "n_D")->capture_default_str();
   double eps_px = 20.0;
@@ -204,6 +213,19 @@ int run(int argc, char** argv) {
     samus_opt.model_floor_rad = floor_arcsec * astro::kArcsecToRad;
     std::optional<OrbitTable> orbit;
     if (!orbit_path.empty()) orbit = OrbitTable::load(orbit_path);
+    if (aberration == "auto") aberration = orbit ? "orbit" : "off";
+    if (aberration == "orbit" && !orbit) throw std::runtime_error("--aberration orbit needs --observer-orbit");
+    // The observer's velocity about the solar-system barycentre at a frame
+    // time (nullopt: no aberration). A frame the orbit does not cover gets
+    // the Earth's alone (its orbital part, <= 5", is then left in it).
+    const auto observer_velocity = [&](std::int64_t t_ns) -> std::optional<Eigen::Vector3d> {
+      if (aberration == "off") return std::nullopt;
+      Eigen::Vector3d v = dynamics::earth_velocity_bcrs_mps(astro::TimeTT{t_ns});
+      if (aberration == "orbit") {
+        if (const auto x = orbit->at(t_ns)) v += x->v_mps;
+      }
+      return v;
+    };
     imp::FrameProcessorOptions fpo = fsw::frame_processor_options(calib, config::ImpTuning{});
     fpo.focal_search_fraction = focal_search_percent / 100.0;
     fpo.learn_psf = learn_psf;
@@ -295,7 +317,7 @@ int run(int argc, char** argv) {
           att << line << csv_text(e.what()) << "\n";
           continue;
         }
-        const imp::FrameSummary fr = processor.process(img.pixels, astro::TimeTT{t_ns});
+        const imp::FrameSummary fr = processor.process(img.pixels, astro::TimeTT{t_ns}, observer_velocity(t_ns));
         hot += fr.hot_pixels_removed;
         uncatalogued += fr.uncatalogued_stars_removed;
         if (!fr.attitude_usable) {

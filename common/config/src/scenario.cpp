@@ -1107,7 +1107,7 @@ class Parser {
 
   void parse_camera(const Val& v, CameraConfig& c) {
     Map m(ctx_, v, {"model", "boresight", "cadence", "pointing_error_deg", "jitter_deg", "profile",
-                    "time_tag_correction_s"});
+                    "time_tag_correction_s", "stellar_aberration"});
     if (!m.ok()) return;
     if (const Val* mv = m.find("model")) {
       if (auto model =
@@ -1130,6 +1130,7 @@ class Parser {
                  "deg");
     number_field(ctx_, m, "jitter_deg", c.jitter_deg, Range{0.0, 90.0, false, true}, "deg");
     number_field(ctx_, m, "time_tag_correction_s", c.time_tag_correction_s, closed(-60.0, 60.0), "s");
+    bool_field(ctx_, m, "stellar_aberration", c.stellar_aberration);
     if (const Val* pv = m.find("profile")) {
       const auto t = read_string(ctx_, *pv, "nominal or flight-like");
       if (t && *t == "flight-like") {
@@ -1371,13 +1372,15 @@ class Parser {
     constexpr std::int64_t kBig = std::numeric_limits<int>::max();
     if (const Val* iv = m.find("imp")) {
       Map im(ctx_, *iv,
-             {"detection_sigma", "dbscan_min_points", "dbscan_radius_px", "dbscan_frames", "aided_detection_snr"});
+             {"detection_sigma", "dbscan_min_points", "dbscan_radius_px", "dbscan_frames", "aided_detection_snr",
+              "aberration_correction"});
       if (im.ok()) {
         number_field(ctx_, im, "detection_sigma", t.imp.detection_sigma, positive());
         int_field(ctx_, im, "dbscan_min_points", t.imp.dbscan_min_points, 1, kBig);
         number_field(ctx_, im, "dbscan_radius_px", t.imp.dbscan_radius_px, positive(), "px");
         int_field(ctx_, im, "dbscan_frames", t.imp.dbscan_frames, 1, kBig);
         number_field(ctx_, im, "aided_detection_snr", t.imp.aided_detection_snr, non_negative("0 = off"));
+        bool_field(ctx_, im, "aberration_correction", t.imp.aberration_correction);
       }
     }
     if (const Val* bv = m.find("bod")) {

@@ -164,7 +164,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"dbscan_min_points", u.tuning.imp.dbscan_min_points},
           {"dbscan_radius_px", u.tuning.imp.dbscan_radius_px},
           {"dbscan_frames", u.tuning.imp.dbscan_frames},
-          {"aided_detection_snr", u.tuning.imp.aided_detection_snr}}},
+          {"aided_detection_snr", u.tuning.imp.aided_detection_snr},
+          {"aberration_correction", u.tuning.imp.aberration_correction}}},
         {"bod",
          {{"enabled", u.tuning.bod.enabled}, {"period_s", u.tuning.bod.period_s},
           {"samples", u.tuning.bod.samples}, {"max_iterations", u.tuning.bod.max_iterations},
@@ -314,6 +315,7 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.imp.dbscan_radius_px = t.at("imp").at("dbscan_radius_px").get<double>();
     u.tuning.imp.dbscan_frames = t.at("imp").at("dbscan_frames").get<int>();
     u.tuning.imp.aided_detection_snr = t.at("imp").at("aided_detection_snr").get<double>();
+    u.tuning.imp.aberration_correction = t.at("imp").value("aberration_correction", false);  // older: none
     const auto& bod = t.at("bod");
     u.tuning.bod.enabled = bod.at("enabled").get<bool>();
     u.tuning.bod.period_s = bod.at("period_s").get<double>();

@@ -806,6 +806,27 @@ TEST(ScenarioLoad, BallisticWalkDefaultsToItsPriorAndReachesTheUplink) {
              "tuning.sod.ballistic.density_change_per_day", "out of range");
 }
 
+// Stellar aberration: on in the world and corrected on board unless the
+// scenario says otherwise; the onboard switch reaches the uplink.
+TEST(ScenarioLoad, StellarAberrationIsOnInTheWorldAndCorrectedOnBoardByDefault) {
+  const Scenario d = load_scenario(write_file("aberration_default.yaml", kValid));
+  EXPECT_TRUE(d.observers.at(0).camera.stellar_aberration);
+  EXPECT_TRUE(d.tuning.imp.aberration_correction);
+  std::string text = kValid;
+  text.replace(text.find("camera: {cadence: 60s}"), 22, "camera: {cadence: 60s, stellar_aberration: true}");
+  const Scenario s = load_scenario(
+      write_file("aberration_off.yaml", text + "tuning:\n  imp: {aberration_correction: false}\n"));
+  EXPECT_TRUE(s.observers.at(0).camera.stellar_aberration);
+  EXPECT_FALSE(s.tuning.imp.aberration_correction);
+  const std::string up = ::testing::TempDir() + "/uplink_aberration.json";
+  write_uplink(make_uplink(s, "SV4"), up);
+  EXPECT_FALSE(read_uplink(up).tuning.imp.aberration_correction);
+  write_uplink(make_uplink(d, "SV4"), up);
+  EXPECT_TRUE(read_uplink(up).tuning.imp.aberration_correction);
+  expect_one("aberration_bad.yaml", kValid + "tuning:\n  imp: {aberration_correction: 3}\n", 13,
+             "tuning.imp.aberration_correction", "expected true or false");
+}
+
 TEST(ScenarioValidation, UnknownOrSelfTargetsAreNamed) {
   const std::string path =
       write_file("targets.yaml", kValid + "    mode: 2\n    targets: [SV9, SV4]\n  - spacecraft: SV2\n    mode: 3\n");

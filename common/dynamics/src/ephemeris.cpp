@@ -41,6 +41,11 @@ Vec3 sun_position_eci_m(TimeTT t) {
   return equatorial_from_ecliptic(r_m, lambda, 0.0);
 }
 
+Vec3 earth_velocity_bcrs_mps(TimeTT t) {
+  constexpr double h_s = 600.0;
+  return -(sun_position_eci_m(t.plus_seconds(h_s)) - sun_position_eci_m(t.plus_seconds(-h_s))) / (2.0 * h_s);
+}
+
 Vec3 moon_position_eci_m(TimeTT t) {
   const double T = t.julian_centuries();
   // M&G eq. 3.47-3.49 (fundamental arguments, longitude, latitude, distance).

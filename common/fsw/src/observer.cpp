@@ -1,5 +1,7 @@
 #include "artms/fsw/observer.hpp"
 
+#include "artms/dynamics/ephemeris.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <span>
@@ -292,7 +294,22 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
     pixels = decoded_;
   }
   const astro::TimeTT tf{f.time_tag_tt_ns};
-  const imp::FrameSummary fr = processor_->process(pixels, tf);
+  // The observer's own orbit (SAMUS, and IMP's aberration): its latest GNSS
+  // fix propagated, or in mode 4 (no GNSS) SOD's estimate.
+  std::optional<astro::StateVector> own;
+  if (last_fix_) {
+    own = astro::cartesian_from_qns(onboard_.propagate(astro::qns_from_cartesian(last_fix_->x), last_fix_->t, tf));
+  } else if (navigator_ && up_.observer.mode == 4) {
+    if (const NavReport r = navigator_->report(tf); r.valid) own = r.x_eci;
+  }
+  // The stars as this observer sees them: the Earth's velocity about the
+  // Sun (the onboard ephemeris) plus its own; without an orbit yet, the
+  // Earth's alone (the orbital part, <= 5", is then left in the attitude).
+  std::optional<Eigen::Vector3d> v_bcrs;
+  if (up_.tuning.imp.aberration_correction) {
+    v_bcrs = dynamics::earth_velocity_bcrs_mps(tf) + (own ? own->v_mps : Eigen::Vector3d::Zero());
+  }
+  const imp::FrameSummary fr = processor_->process(pixels, tf, v_bcrs);
   rep.status = fr.attitude_usable ? bus::FrameStatus::kOk
                                   : (fr.status == "no_detections" ? bus::FrameStatus::kNoDetections
                                                                   : bus::FrameStatus::kNotIdentified);
@@ -325,14 +342,6 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
         release_direct(p);
       }
       pending_direct_.clear();
-    }
-    // The observer's own orbit for SAMUS: its latest GNSS fix propagated, or
-    // in mode 4 (no GNSS) SOD's estimate.
-    std::optional<astro::StateVector> own;
-    if (last_fix_) {
-      own = astro::cartesian_from_qns(onboard_.propagate(astro::qns_from_cartesian(last_fix_->x), last_fix_->t, tf));
-    } else if (navigator_ && up_.observer.mode == 4) {
-      if (const NavReport r = navigator_->report(tf); r.valid) own = r.x_eci;
     }
     if (own) {
       imp::TrackerInput in;

@@ -1,6 +1,8 @@
 // Image formation and noise (see image.hpp for the model and conventions).
 #include "artms/imaging/image.hpp"
 
+#include "artms/astro/aberration.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -640,7 +642,7 @@ std::vector<float> ImageFormer::render_float(std::span<const PointSource> source
 
 std::vector<StarInFrame> stars_in_frame(const StarCatalog& catalog, const CameraModel& camera,
                                         const Eigen::Quaterniond& q_cam_from_eci, astro::TimeTT t,
-                                        double margin_px) {
+                                        double margin_px, const Eigen::Vector3d* observer_velocity_mps) {
   const Eigen::Matrix3d R_cam_from_eci = q_cam_from_eci.normalized().toRotationMatrix();
   const Vec3 boresight_eci = R_cam_from_eci.row(2).transpose();
   // A cone that surely holds the grown sensor; project() makes the cut.
@@ -649,7 +651,9 @@ std::vector<StarInFrame> stars_in_frame(const StarCatalog& catalog, const Camera
                       1.0 * astro::kDegToRad;
   std::vector<StarInFrame> out;
   for (const Star* s : catalog.in_cone(boresight_eci, std::min(half, astro::kPi / 2.0), t)) {
-    const auto px = camera.project(R_cam_from_eci * s->unit_eci_at(t), margin_px);
+    const Vec3 u = observer_velocity_mps ? astro::aberrated_direction(s->unit_eci_at(t), *observer_velocity_mps)
+                                         : s->unit_eci_at(t);
+    const auto px = camera.project(R_cam_from_eci * u, margin_px);
     if (!px) continue;
     out.push_back({s, px->x(), px->y(), camera.electrons_from_vmag(s->vmag)});
   }

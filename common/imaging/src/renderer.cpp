@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
+#include "artms/astro/aberration.hpp"
 #include "artms/astro/constants.hpp"
 #include "artms/dynamics/ephemeris.hpp"
 #include "artms/dynamics/shadow.hpp"
@@ -24,7 +26,7 @@ constexpr double kBandDeg = 1.0;  // faint-star sky cells: 1 deg declination ban
 constexpr std::uint64_t kStreamFaint = 0xFA1E'57A2ULL;
 }  // namespace
 
-std::vector<PointSource> FrameRenderer::faint_star_sources(const Eigen::Quaterniond& q,
+std::vector<PointSource> FrameRenderer::faint_star_sources(const Eigen::Quaterniond& q, const Vec3* v_obs_mps,
                                                            std::size_t* count) const {
   std::vector<PointSource> out;
   *count = 0;
@@ -77,7 +79,8 @@ std::vector<PointSource> FrameRenderer::faint_star_sources(const Eigen::Quaterni
         const double sdec = s0 + (s1 - s0) * hashed_uniform(options_.sky_seed, idx, kStreamFaint + 2);
         const double cdec = std::sqrt(std::max(0.0, 1.0 - sdec * sdec));
         const double ra_rad = ra * astro::kDegToRad;
-        const Vec3 u_eci(cdec * std::cos(ra_rad), cdec * std::sin(ra_rad), sdec);
+        const Vec3 u_cat(cdec * std::cos(ra_rad), cdec * std::sin(ra_rad), sdec);
+        const Vec3 u_eci = v_obs_mps ? astro::aberrated_direction(u_cat, *v_obs_mps) : u_cat;
         const auto px = cam.project(R * u_eci, 4.0 * cam.psf_sigma_px);
         if (!px) continue;
         const double w = hashed_uniform(options_.sky_seed, idx, kStreamFaint + 3);
@@ -113,19 +116,23 @@ RenderedFrame FrameRenderer::render(const RenderRequest& req) const {
   angles.earth_limb_rad = cam.earth_limb_exclusion_rad;
   f.exclusion = camera_exclusion(boresight, r_obs, r_sun, r_moon, angles);
 
-  // Catalog stars.
-  const auto stars = stars_in_frame(catalog_, cam, req.q_cam_from_eci, req.t, 4.0 * cam.psf_sigma_px);
+  // Catalog stars, aberrated by the observer's barycentric velocity.
+  std::optional<Vec3> v_obs;
+  if (options_.stellar_aberration) v_obs = dynamics::earth_velocity_bcrs_mps(req.t) + req.observer_eci.v_mps;
+  const Vec3* v_obs_ptr = v_obs ? &*v_obs : nullptr;
+  const auto stars = stars_in_frame(catalog_, cam, req.q_cam_from_eci, req.t, 4.0 * cam.psf_sigma_px, v_obs_ptr);
   std::vector<PointSource> sources = point_sources(stars);
   for (const auto& s : stars) {
     if (!cam.on_sensor(Vec2(s.x_px, s.y_px))) continue;
     // RA/Dec at the frame epoch (proper motion applied), as imaged.
-    const Vec3 u = s.star->unit_eci_at(req.t);
+    const Vec3 u = v_obs_ptr ? astro::aberrated_direction(s.star->unit_eci_at(req.t), *v_obs_ptr)
+                             : s.star->unit_eci_at(req.t);
     f.stars.push_back({s.star->catalog_id, std::atan2(u.y(), u.x()) * astro::kRadToDeg,
                        std::asin(std::clamp(u.z(), -1.0, 1.0)) * astro::kRadToDeg, s.star->vmag,
                        s.x_px, s.y_px});
   }
   // Faint uncatalogued stars.
-  auto faint = faint_star_sources(req.q_cam_from_eci, &f.faint_stars);
+  auto faint = faint_star_sources(req.q_cam_from_eci, v_obs_ptr, &f.faint_stars);
   sources.insert(sources.end(), faint.begin(), faint.end());
 
   // Targets.

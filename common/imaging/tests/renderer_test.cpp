@@ -10,7 +10,9 @@
 #include <string>
 #include <vector>
 
+#include "artms/astro/aberration.hpp"
 #include "artms/astro/constants.hpp"
+#include "artms/astro/time.hpp"
 #include "artms/dynamics/ephemeris.hpp"
 
 namespace artms::imaging {
@@ -271,6 +273,48 @@ TEST(RendererRealism, EarthLimbStrayLightFollowsTheSunAndPixelEncodingShifts) {
   const RenderedFrame s = shifted.render(req);
   ASSERT_EQ(s.pixels.size(), none.pixels.size());
   for (std::size_t i = 0; i < s.pixels.size(); i += 997) EXPECT_EQ(s.pixels[i], none.pixels[i] << 4);
+}
+
+// Stellar aberration (RenderOptions::stellar_aberration): every star moves
+// by the angle astro::aberrated_direction gives for the observer's velocity
+// about the barycentre (the Earth's plus its own, up to ~26"), a target
+// that moves with the observer does not.
+TEST(RendererRealism, StarsCarryTheObserversAberrationTargetsDoNot) {
+  const CameraModel cam = CameraModel::load(std::string(ARTMS_CONFIG_DIR) + "/cameras/nst_ideal.yaml");
+  const StarCatalog catalog = StarCatalog::load_bsc5(std::string(ARTMS_DATA_DIR) + "/stars/bsc5.dat", 7.0);
+  RenderOptions opt;
+  opt.noise = NoiseOptions::noise_free();
+  opt.faint_stars = false;
+  const FrameRenderer plain(cam, catalog, opt);
+  opt.stellar_aberration = true;
+  const FrameRenderer aberrated(cam, catalog, opt);
+  RenderRequest req = limb_request();
+  req.t = astro::tt_from_utc_string("2024-05-08T00:00:00Z");
+  req.targets.push_back({"SV4", req.observer_eci.r_m + dynamics::Vec3(0.0, 50e3, 300.0)});
+  const RenderedFrame a = plain.render(req), b = aberrated.render(req);
+  const Eigen::Matrix3d R = req.q_cam_from_eci.toRotationMatrix();
+  const dynamics::Vec3 v = dynamics::earth_velocity_bcrs_mps(req.t) + req.observer_eci.v_mps;
+  int compared = 0;
+  double worst = 0.0, largest = 0.0;
+  for (const auto& sa : a.stars) {
+    for (const auto& sb : b.stars) {
+      if (sb.catalog_id != sa.catalog_id) continue;
+      const Star* star = catalog.find(sa.catalog_id);
+      ASSERT_NE(star, nullptr);
+      const auto px = cam.project(R * astro::aberrated_direction(star->unit_eci_at(req.t), v));
+      ASSERT_TRUE(px.has_value());
+      worst = std::max(worst, std::hypot(sb.x_px - px->x(), sb.y_px - px->y()));
+      largest = std::max(largest, std::hypot(sb.x_px - sa.x_px, sb.y_px - sa.y_px));
+      ++compared;
+    }
+  }
+  EXPECT_GE(compared, 5);
+  EXPECT_LT(worst, 1e-6);
+  // The shift itself: ~0.3-0.8 px on the NST (~25"/px) for this geometry.
+  EXPECT_GT(largest * 206264.806 / cam.fx_px, 8.0);
+  ASSERT_EQ(a.targets.size(), 1u);
+  EXPECT_EQ(a.targets[0].x_px, b.targets[0].x_px);
+  EXPECT_EQ(a.targets[0].y_px, b.targets[0].y_px);
 }
 
 }  // namespace

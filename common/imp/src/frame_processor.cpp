@@ -1,5 +1,6 @@
 #include "artms/imp/frame_processor.hpp"
 
+#include "artms/astro/aberration.hpp"
 #include "artms/imp/qmethod.hpp"
 
 #include <algorithm>
@@ -50,8 +51,14 @@ FrameProcessor::FrameProcessor(Intrinsics intrinsics, const StarIdCatalog& catal
   opt_.validate();
 }
 
-FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astro::TimeTT t) {
+FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astro::TimeTT t,
+                                     const std::optional<Eigen::Vector3d>& observer_velocity_mps) {
   const double t_s = t.seconds_since_j2000();
+  // A catalog direction as this observer sees it (aberrated when its
+  // velocity is given).
+  const auto apparent = [&](const Eigen::Vector3d& u_eci) -> Eigen::Vector3d {
+    return observer_velocity_mps ? astro::aberrated_direction(u_eci, *observer_velocity_mps) : u_eci;
+  };
   FrameSummary out;
   out.psf_sigma_px = opt_.detection.psf_sigma_px;
   const DetectionResult det = detect(pixels, K_.width, K_.height, opt_.detection);
@@ -149,7 +156,8 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     // beside it) is weighted as a blend, like a candidate below.
     const double s = std::max(blend_sigma_px(c.sigma_px, c.psf_chi2_z > opt_.blend_chi2_z, opt_), 0.01) / K_.fx;
     pairs.push_back({dirs[static_cast<std::size_t>(idx)],
-                     catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci, 1.0 / (s * s)});
+                     apparent(catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci),
+                     1.0 / (s * s)});
   }
   AttitudeSolution q = q_method(pairs);
   // Stars that scatter far more than their centroid sigmas say (a real
@@ -229,7 +237,7 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     for (const auto& [idx, cat_id] : id.matches) {
       const auto& c = det.centroids[order[static_cast<std::size_t>(idx)]];
       const Eigen::Vector3d u_cat =
-          R_cam_from_eci * catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci;
+          R_cam_from_eci * apparent(catalog_.stars()[static_cast<std::size_t>(catalog_.index_of(cat_id))].u_eci);
       const Eigen::Vector3d& u_meas = dirs[static_cast<std::size_t>(idx)];
       out.stars.push_back({c.x_px, c.y_px, cat_id, std::atan2(u_meas.cross(u_cat).norm(), u_meas.dot(u_cat)),
                            c.saturated, blend_sigma_px(c.sigma_px, c.psf_chi2_z > opt_.blend_chi2_z, opt_)});
@@ -258,7 +266,7 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
     const Eigen::Vector3d boresight_eci = R_eci_from_cam.col(2);
     const auto add = [&](const Eigen::Vector3d& u_eci) {
       if (u_eci.dot(boresight_eci) < cos_fov) return;
-      if (const auto star_px = K_.project(R_eci_from_cam.transpose() * u_eci)) catalog_px.push_back(*star_px);
+      if (const auto star_px = K_.project(R_eci_from_cam.transpose() * apparent(u_eci))) catalog_px.push_back(*star_px);
     };
     if (blend_stars_.empty()) {
       for (const auto& cs : catalog_.stars()) add(cs.u_eci);

@@ -49,6 +49,7 @@ FrameSetup make_frame_setup(const config::Scenario& s, const std::string& observ
   options.sky_seed = 20240508;  // one sky for every run: the same faint stars
   options.noise_seed = s.seed;
   options.fault_epoch = s.epoch;
+  options.stellar_aberration = obs->camera.stellar_aberration;
   for (const auto& f : s.faults) {
     if (f.observer.empty() || f.observer == observer) {
       options.faults.dropout_probability = f.frame_dropout_probability;

@@ -94,6 +94,10 @@ struct CameraConfig {
   // (the paper's in-flight update: "user-specified time offsets for incoming
   // star tracker data"; -0.4 s on 05/08/24). 0: none.
   double time_tag_correction_s = 0.0;
+  // The world's stars as the moving observer sees them: shifted by up to
+  // ~26" by stellar aberration (the Earth's velocity about the Sun plus the
+  // observer's orbital velocity). False only to study IMP without it.
+  bool stellar_aberration = true;
 };
 
 // Ground a-priori knowledge uplinked to an observer (navigation mode 1):
@@ -160,6 +164,10 @@ struct ImpTuning {
   // SOD-aided detection of untracked faint targets (matched-filter SNR in
   // the validity region, imp/aided_detection.hpp; not in the paper); 0: off.
   double aided_detection_snr = 5.5;
+  // IMP aberrates the catalog by the observer's velocity (the Earth's from
+  // the onboard Sun ephemeris plus its own orbit's) before solving the
+  // attitude (imp::FrameProcessor::process); false: the catalog as it is.
+  bool aberration_correction = true;
 };
 struct BodTuning {
   bool enabled = true;               // BOD runs in modes 1-3 (paper: health check 1, re-initialisation)

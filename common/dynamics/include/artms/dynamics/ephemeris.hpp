@@ -28,6 +28,16 @@ Vec3 sun_position_eci_m(TimeTT t);
 // Geocentric position of the Moon, ECI J2000 components (M&G eq. 3.47-3.49).
 // Against astropy 5.2 (ERFA moon98), 2000-2030: < 0.08 deg in direction, < 450 km in distance.
 Vec3 moon_position_eci_m(TimeTT t);
+// Velocity of the Earth's centre relative to the solar-system barycentre,
+// ECI J2000 components (m/s): minus the rate of sun_position_eci_m (central
+// difference over +-600 s). It leaves out the Sun's own motion about the
+// barycentre (<= 13 m/s) and the Earth's about the Earth-Moon barycentre
+// (12.6 m/s) and the perihelion's motion: against ERFA epv00, 1990-2040,
+// within 100 m/s (0.07" of
+// aberration; tests/oracle/dynamics_oracle_test.cpp). For stellar
+// aberration (astro/aberration.hpp): the observer's velocity is this plus
+// its geocentric velocity.
+Vec3 earth_velocity_bcrs_mps(TimeTT t);
 
 // Third-body perturbing acceleration on a satellite at r_sat of a body of
 // gravitational parameter gm at r_body (both geocentric), M&G eq. 3.37:

@@ -173,10 +173,13 @@ struct StarInFrame {
 // Catalog stars whose direction at t falls on the sensor grown by margin_px
 // (use a few PSF sigmas so that stars just off the edge still leave their
 // tails), for the attitude q_cam_from_eci (rotates ECI components into
-// camera components).
+// camera components). observer_velocity_mps (the observer's velocity
+// relative to the solar-system barycentre, ECI components; nullptr: none)
+// aberrates each star's direction as that observer sees it
+// (astro/aberration.hpp).
 std::vector<StarInFrame> stars_in_frame(const StarCatalog& catalog, const CameraModel& camera,
                                         const Eigen::Quaterniond& q_cam_from_eci, astro::TimeTT t,
-                                        double margin_px = 0.0);
+                                        double margin_px = 0.0, const Eigen::Vector3d* observer_velocity_mps = nullptr);
 std::vector<PointSource> point_sources(std::span<const StarInFrame> stars);
 
 // A 16-bit grayscale image.

@@ -32,6 +32,14 @@ struct RenderOptions {
   double faint_star_max_vmag = 9.0;
   double faint_stars_per_deg2 = 2.7;  // V 6.5-9 star counts: ~110,000 over the sky
   std::uint64_t sky_seed = 20240508;
+  // Stars (catalogued and faint) as the moving observer sees them, shifted
+  // by up to ~26" towards its velocity relative to the solar-system
+  // barycentre (the Earth's, dynamics::earth_velocity_bcrs_mps, plus its own
+  // orbital velocity): stellar aberration, astro/aberration.hpp. Targets are
+  // not shifted (a target moving with the observer: its light time cancels
+  // it). Off here for geometry tests; scenarios turn it on
+  // (observers[].camera.stellar_aberration).
+  bool stellar_aberration = false;
   FrameFaults faults;
   astro::TimeTT fault_epoch;  // time-tag drift counts from here
   std::uint64_t noise_seed = 1;
@@ -51,7 +59,8 @@ struct RenderRequest {
   std::vector<TargetInput> targets;
 };
 
-// ra_deg/dec_deg: direction at the frame epoch (J2000 frame, proper motion applied).
+// ra_deg/dec_deg: direction at the frame epoch (J2000 frame, proper motion
+// applied, and aberration when RenderOptions::stellar_aberration: as imaged).
 struct StarTruth {
   int catalog_id = 0;
   double ra_deg = 0.0, dec_deg = 0.0, vmag = 0.0, x_px = 0.0, y_px = 0.0;
@@ -85,8 +94,9 @@ class FrameRenderer {
   [[nodiscard]] const RenderOptions& options() const { return options_; }
 
  private:
+  // v_obs_mps: the observer's barycentric velocity (aberration), or nullptr.
   [[nodiscard]] std::vector<PointSource> faint_star_sources(const Eigen::Quaterniond& q_cam_from_eci,
-                                                            std::size_t* count) const;
+                                                            const astro::Vec3* v_obs_mps, std::size_t* count) const;
   ImageFormer former_;
   StarCatalog catalog_;
   RenderOptions options_;

@@ -151,8 +151,18 @@ class FrameProcessor {
  public:
   FrameProcessor(Intrinsics intrinsics, const StarIdCatalog& catalog, FrameProcessorOptions options = {});
   // pixels: row-major width x height of the intrinsics. t: the frame's time
-  // tag, used for the history ages only.
-  FrameSummary process(std::span<const std::uint16_t> pixels, astro::TimeTT t);
+  // tag, used for the history ages only. observer_velocity_mps: the
+  // observer's velocity relative to the solar-system barycentre (ECI
+  // components; the Earth's plus its orbital velocity): the identified
+  // stars' catalog directions are aberrated by it (astro/aberration.hpp)
+  // before the attitude is solved, so that the attitude, and the inertial
+  // directions of the candidates (targets that move with the observer are
+  // not aberrated), are true ones. nullopt: the catalog as it is (an
+  // astrometric attitude, off by up to ~26" in flight). Identification
+  // itself tolerates the shift (it changes star separations by <= ~5" over
+  // the field).
+  FrameSummary process(std::span<const std::uint16_t> pixels, astro::TimeTT t,
+                       const std::optional<Eigen::Vector3d>& observer_velocity_mps = std::nullopt);
   [[nodiscard]] const Intrinsics& intrinsics() const { return K_; }
   // Directions (ECI unit vectors) of the stars the blend check looks for
   // beside a candidate (FrameProcessorOptions.blend_radius_px): a catalog
