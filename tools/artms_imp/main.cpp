@@ -213,7 +213,14 @@ int run(int argc, char** argv) {
     samus_opt.model_floor_rad = floor_arcsec * astro::kArcsecToRad;
     std::optional<OrbitTable> orbit;
     if (!orbit_path.empty()) orbit = OrbitTable::load(orbit_path);
-    if (aberration == "auto") aberration = orbit ? "orbit" : "off";
+    if (aberration == "auto") {
+      aberration = orbit ? "orbit" : "off";
+      if (!orbit) {
+        std::fprintf(stderr,
+                     "artms-imp: stellar aberration left in the attitude (an astrometric attitude, up to ~26\" from the "
+                     "true pointing; --aberration earth for a ground camera, --observer-orbit for a spacecraft)\n");
+      }
+    }
     if (aberration == "orbit" && !orbit) throw std::runtime_error("--aberration orbit needs --observer-orbit");
     // The observer's velocity about the solar-system barycentre at a frame
     // time (nullopt: no aberration). A frame the orbit does not cover gets
