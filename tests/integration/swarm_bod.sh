@@ -17,8 +17,10 @@
 #     entry "never estimated" with the frames' reasons (nothing silent);
 #  4. starling_bod_assist.yaml (issue 16, acceptance 3), 19 h seed 7: SV4 in
 #     mode 1 with the 3.5-day a-priori of T20 (~20 km, bound only after BOD)
-#     and T150: both converge (a*dlambda within 1 % of range to the end)
-#     within 6 orbits; T150 is never bound to T20's track.
+#     and T150: both converge (a*dlambda within 1 % of range to the end);
+#     T20 within 6 orbits. T150's "within 6 orbits" is its own test,
+#     integration.bod_assist_far_target (tests/integration/CMakeLists.txt:
+#     not met since stop 52, 7.44 orbits), which reads this run's summary.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"
@@ -68,7 +70,9 @@ for k in ("T20", "T150"):
     t = ta[k]
     print(f"a-priori too poor: {k} converged at {t['convergence_orbits']} orbits, final dlambda error "
           f"{t['final_dlambda_error_pct']:.3f} % (1-sigma {t['final_dlambda_sigma_pct']:.3f} %)")
-    assert t["convergence_orbits"] is not None and t["convergence_orbits"] <= 6.0, (k, t)
+    assert t["convergence_orbits"] is not None, (k, t)
+    if k == "T20":
+        assert t["convergence_orbits"] <= 6.0, (k, t)
     assert abs(t["final_dlambda_error_pct"]) <= 1.0, (k, t)
 print("swarm_bod: ok")
 PY
