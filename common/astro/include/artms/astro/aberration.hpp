@@ -6,10 +6,12 @@
 //   u' = [u + (gamma - 1)(u . b_hat) b_hat + gamma b] / [gamma (1 + u . b)],
 //   b = v / c,
 // to first order u' = u + b - (u . b) u. For Starling (about 30 km/s about
-// the Sun plus 7.6 km/s in orbit) the shift reaches 26"; a nearby target
-// that moves with the observer is not shifted (its light time cancels it),
-// so a star tracker whose catalog is not aberrated puts its attitude, and
-// every bearing, off by up to that much.
+// the Sun plus 7.6 km/s in orbit) the shift reaches 26". A nearby target's
+// light time cancels all but the difference of the two velocities, which
+// for spacecraft 50-150 km apart on one orbit is 57-164 m/s, 0.04-0.11"
+// (neither the renderer nor IMP applies it). So a star tracker whose
+// catalog is not aberrated puts its attitude, and every bearing, off by up
+// to 26".
 #pragma once
 
 #include "artms/astro/frames.hpp"

@@ -35,10 +35,11 @@ struct RenderOptions {
   // Stars (catalogued and faint) as the moving observer sees them, shifted
   // by up to ~26" towards its velocity relative to the solar-system
   // barycentre (the Earth's, dynamics::earth_velocity_bcrs_mps, plus its own
-  // orbital velocity): stellar aberration, astro/aberration.hpp. Targets are
-  // not shifted (a target moving with the observer: its light time cancels
-  // it). Off here for geometry tests; scenarios turn it on
-  // (observers[].camera.stellar_aberration).
+  // orbital velocity): stellar aberration, astro/aberration.hpp. Targets
+  // are drawn at their geometric directions: their light time cancels all
+  // but the two velocities' difference, 0.04-0.11" for spacecraft 50-150 km
+  // apart on one orbit, not drawn. Off here for geometry tests; scenarios
+  // turn it on (observers[].camera.stellar_aberration).
   bool stellar_aberration = false;
   FrameFaults faults;
   astro::TimeTT fault_epoch;  // time-tag drift counts from here
