@@ -1373,13 +1373,15 @@ class Parser {
     if (const Val* iv = m.find("imp")) {
       Map im(ctx_, *iv,
              {"detection_sigma", "dbscan_min_points", "dbscan_radius_px", "dbscan_frames", "aided_detection_snr",
-              "aberration_correction"});
+              "aided_false_alarms", "aberration_correction"});
       if (im.ok()) {
         number_field(ctx_, im, "detection_sigma", t.imp.detection_sigma, positive());
         int_field(ctx_, im, "dbscan_min_points", t.imp.dbscan_min_points, 1, kBig);
         number_field(ctx_, im, "dbscan_radius_px", t.imp.dbscan_radius_px, positive(), "px");
         int_field(ctx_, im, "dbscan_frames", t.imp.dbscan_frames, 1, kBig);
         number_field(ctx_, im, "aided_detection_snr", t.imp.aided_detection_snr, non_negative("0 = off"));
+        number_field(ctx_, im, "aided_false_alarms", t.imp.aided_false_alarms,
+                     closed(0.0, 0.1, "0 = the fixed aided_detection_snr"));
         bool_field(ctx_, im, "aberration_correction", t.imp.aberration_correction);
       }
     }

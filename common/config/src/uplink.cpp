@@ -165,6 +165,7 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"dbscan_radius_px", u.tuning.imp.dbscan_radius_px},
           {"dbscan_frames", u.tuning.imp.dbscan_frames},
           {"aided_detection_snr", u.tuning.imp.aided_detection_snr},
+          {"aided_false_alarms", u.tuning.imp.aided_false_alarms},
           {"aberration_correction", u.tuning.imp.aberration_correction}}},
         {"bod",
          {{"enabled", u.tuning.bod.enabled}, {"period_s", u.tuning.bod.period_s},
@@ -315,6 +316,10 @@ ObserverUplink read_uplink(const std::string& path) {
     u.tuning.imp.dbscan_radius_px = t.at("imp").at("dbscan_radius_px").get<double>();
     u.tuning.imp.dbscan_frames = t.at("imp").at("dbscan_frames").get<int>();
     u.tuning.imp.aided_detection_snr = t.at("imp").at("aided_detection_snr").get<double>();
+    u.tuning.imp.aided_false_alarms = t.at("imp").value("aided_false_alarms", 0.0);  // older: the fixed threshold
+    if (!(u.tuning.imp.aided_false_alarms >= 0.0 && u.tuning.imp.aided_false_alarms <= 0.1)) {
+      throw std::runtime_error(path + ": tuning.imp.aided_false_alarms must be in [0, 0.1]");
+    }
     u.tuning.imp.aberration_correction = t.at("imp").value("aberration_correction", false);  // older: none
     const auto& bod = t.at("bod");
     u.tuning.bod.enabled = bod.at("enabled").get<bool>();

@@ -827,6 +827,24 @@ TEST(ScenarioLoad, StellarAberrationIsOnInTheWorldAndCorrectedOnBoardByDefault) 
              "tuning.imp.aberration_correction", "expected true or false");
 }
 
+// The aided detection's constant false-alarm rate: on by default (1e-4 per
+// search), carried by the uplink, 0 in an uplink written before it (the fixed
+// threshold), and a rate outside [0, 0.1] named.
+TEST(ScenarioLoad, AidedDetectionFalseAlarmRateIsUplinkedAndChecked) {
+  const Scenario d = load_scenario(write_file("false_alarms_default.yaml", kValid));
+  EXPECT_DOUBLE_EQ(d.tuning.imp.aided_false_alarms, 1e-4);
+  const Scenario s =
+      load_scenario(write_file("false_alarms_fixed.yaml", kValid + "tuning:\n  imp: {aided_false_alarms: 0}\n"));
+  EXPECT_DOUBLE_EQ(s.tuning.imp.aided_false_alarms, 0.0);
+  const std::string up = ::testing::TempDir() + "/uplink_false_alarms.json";
+  write_uplink(make_uplink(d, "SV4"), up);
+  EXPECT_DOUBLE_EQ(read_uplink(up).tuning.imp.aided_false_alarms, 1e-4);
+  write_uplink(make_uplink(s, "SV4"), up);
+  EXPECT_DOUBLE_EQ(read_uplink(up).tuning.imp.aided_false_alarms, 0.0);
+  expect_one("false_alarms_bad.yaml", kValid + "tuning:\n  imp: {aided_false_alarms: 0.5}\n", 13,
+             "tuning.imp.aided_false_alarms", "expected 0 <= aided_false_alarms <= 0.1");
+}
+
 TEST(ScenarioValidation, UnknownOrSelfTargetsAreNamed) {
   const std::string path =
       write_file("targets.yaml", kValid + "    mode: 2\n    targets: [SV9, SV4]\n  - spacecraft: SV2\n    mode: 3\n");

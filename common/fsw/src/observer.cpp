@@ -67,6 +67,7 @@ imp::AidedDetectionOptions aided_detection_options(const config::CameraCalibrati
   // detection is off (aided_detection_snr 0).
   imp::AidedDetectionOptions o;
   if (imp_tuning.aided_detection_snr > 0.0) o.threshold_snr = imp_tuning.aided_detection_snr;
+  o.false_alarms_per_search = imp_tuning.aided_false_alarms;
   o.psf_sigma_px = c.psf_sigma_px;
   o.gain_e_per_dn = c.gain_e_per_dn;
   return o;

@@ -1,20 +1,59 @@
 #include "artms/imp/aided_detection.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 
 namespace artms::imp {
 
 void AidedDetectionOptions::validate() const {
   if (!(threshold_snr > 0.0)) throw std::invalid_argument("AidedDetectionOptions.threshold_snr must be > 0");
+  if (!(false_alarms_per_search >= 0.0 && false_alarms_per_search < 1.0))
+    throw std::invalid_argument("AidedDetectionOptions.false_alarms_per_search must be in [0, 1)");
   if (!(gate_chi2 > 0.0)) throw std::invalid_argument("AidedDetectionOptions.gate_chi2 must be > 0");
   if (!(max_half_window_px >= 1.0)) throw std::invalid_argument("AidedDetectionOptions.max_half_window_px must be >= 1");
   if (!(psf_sigma_px > 0.0)) throw std::invalid_argument("AidedDetectionOptions.psf_sigma_px must be > 0");
   if (!(gain_e_per_dn > 0.0)) throw std::invalid_argument("AidedDetectionOptions.gain_e_per_dn must be > 0");
   if (!(centroid_sigma_floor_px >= 0.0)) throw std::invalid_argument("AidedDetectionOptions.centroid_sigma_floor_px must be >= 0");
   if (!(min_separation_px >= 0.0)) throw std::invalid_argument("AidedDetectionOptions.min_separation_px must be >= 0");
+}
+
+double expected_noise_peaks(double u, double area_px2, double perimeter_px, double psf_sigma_px) {
+  constexpr double kTwoPi = 2.0 * std::numbers::pi;
+  const double lambda = 1.0 / (2.0 * psf_sigma_px * psf_sigma_px);
+  const double e = std::exp(-0.5 * u * u);
+  return 0.5 * std::erfc(u / std::numbers::sqrt2) + 0.5 * perimeter_px * std::sqrt(lambda) * e / kTwoPi +
+         area_px2 * lambda * u * e / std::pow(kTwoPi, 1.5);
+}
+
+SearchRegion search_region(const Eigen::Matrix2d& cov_px2, double psf_sigma_px, double gate_chi2) {
+  const Eigen::Matrix2d S = cov_px2 + psf_sigma_px * psf_sigma_px * Eigen::Matrix2d::Identity();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(S);
+  const double a = std::sqrt(gate_chi2 * std::max(es.eigenvalues()(1), 0.0));
+  const double b = std::sqrt(gate_chi2 * std::max(es.eigenvalues()(0), 0.0));
+  SearchRegion r;
+  r.area_px2 = std::numbers::pi * a * b;
+  r.perimeter_px = std::numbers::pi * (3.0 * (a + b) - std::sqrt((3.0 * a + b) * (a + 3.0 * b)));
+  return r;
+}
+
+double false_alarm_threshold_snr(double false_alarms, const SearchRegion& region, double psf_sigma_px) {
+  if (!(false_alarms > 0.0 && false_alarms < 1.0))
+    throw std::invalid_argument("false_alarm_threshold_snr: false_alarms must be in (0, 1)");
+  if (!(region.area_px2 >= 0.0 && region.perimeter_px >= 0.0 && psf_sigma_px > 0.0))
+    throw std::invalid_argument("false_alarm_threshold_snr: region and psf_sigma_px must be non-negative and positive");
+  // Decreasing in u on [1, 12] for any region.
+  double lo = 1.0, hi = 12.0;
+  if (expected_noise_peaks(hi, region.area_px2, region.perimeter_px, psf_sigma_px) >= false_alarms) return hi;
+  if (expected_noise_peaks(lo, region.area_px2, region.perimeter_px, psf_sigma_px) <= false_alarms) return lo;
+  for (int it = 0; it < 60; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (expected_noise_peaks(mid, region.area_px2, region.perimeter_px, psf_sigma_px) > false_alarms ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
 }
 
 AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int width, int height,
@@ -47,6 +86,11 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
     out.why = "outside";
     return out;
   }
+  const double threshold = opt.false_alarms_per_search > 0.0
+                               ? false_alarm_threshold_snr(opt.false_alarms_per_search,
+                                                           search_region(cov_px2, s, opt.gate_chi2), s)
+                               : opt.threshold_snr;
+  out.threshold_snr = threshold;
   const int w = x1 - x0 + 1, h = y1 - y0 + 1;
   auto at = [&](int x, int y) { return static_cast<double>(pixels[static_cast<std::size_t>(y) * width + x]); };
   // Local background: the window's median.
@@ -86,7 +130,7 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
   for (int y = 1; y + 1 < ih; ++y)
     for (int x = 1; x + 1 < iw; ++x) {
       const double v = nu_at(x, y);
-      if (!(v >= opt.threshold_snr)) continue;
+      if (!(v >= threshold)) continue;
       bool peak = true;
       for (int dy = -1; dy <= 1 && peak; ++dy)
         for (int dx = -1; dx <= 1; ++dx)

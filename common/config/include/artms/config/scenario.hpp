@@ -164,6 +164,10 @@ struct ImpTuning {
   // SOD-aided detection of untracked faint targets (matched-filter SNR in
   // the validity region, imp/aided_detection.hpp; not in the paper); 0: off.
   double aided_detection_snr = 5.5;
+  // > 0: the aided threshold is set per search for this expected number of
+  // noise peaks above it in the validity region (constant false-alarm rate,
+  // imp::false_alarm_threshold_snr); 0: aided_detection_snr everywhere.
+  double aided_false_alarms = 1e-4;
   // IMP aberrates the catalog by the observer's velocity (the Earth's from
   // the onboard Sun ephemeris plus its own orbit's) before solving the
   // attitude (imp::FrameProcessor::process); false: the catalog as it is.
