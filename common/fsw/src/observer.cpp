@@ -340,6 +340,25 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
           continue;
         }
         if (!star && !p.checked_before && !unverified_direct_usable(p)) continue;
+        // The same sky stacked over this frame and the kept ones, deeper
+        // than one frame: a faint star at the direction, or one beside it
+        // that pulls the centroid (docs/imp_samus.md "Faint stars beside a
+        // faint target").
+        const auto& fo = processor_->options();
+        const auto sky = processor_->stacked_sky(pixels, p.c.u_eci, {p.c.x_px, p.c.y_px}, aided_options_,
+                                                 fo.blend_radius_px, kStackedNeighbourFalseAlarms);
+        if (sky && sky->snr_at >= kStackedStarSnr) {
+          ++n_.direct_refused_stacked_star;
+          continue;
+        }
+        if (sky && sky->neighbour_snr >= sky->neighbour_threshold && !p.c.blended) {
+          PendingDirect q = p;
+          q.c.blended = true;
+          q.c.sigma_rad = std::hypot(p.c.sigma_rad, fo.blend_sigma_px / K_.fx);
+          ++n_.direct_blended_stacked;
+          release_direct(q);
+          continue;
+        }
         release_direct(p);
       }
       pending_direct_.clear();
@@ -460,6 +479,10 @@ void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
                                      std::to_string(n_.direct_refused_star) +
                                      " single detections refused as faint stars (seen again at the same "
                                      "inertial direction), " +
+                                     std::to_string(n_.direct_refused_stacked_star) +
+                                     " refused as faint stars in the stack of other frames, " +
+                                     std::to_string(n_.direct_blended_stacked) +
+                                     " weighted as blends (a faint neighbour in that stack), " +
                                      std::to_string(n_.direct_refused_unverified) +
                                      " refused unchecked (no frame before or after saw their direction; "
                                      "validity region too wide)");

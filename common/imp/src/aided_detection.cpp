@@ -19,6 +19,8 @@ void AidedDetectionOptions::validate() const {
   if (!(gain_e_per_dn > 0.0)) throw std::invalid_argument("AidedDetectionOptions.gain_e_per_dn must be > 0");
   if (!(centroid_sigma_floor_px >= 0.0)) throw std::invalid_argument("AidedDetectionOptions.centroid_sigma_floor_px must be >= 0");
   if (!(min_separation_px >= 0.0)) throw std::invalid_argument("AidedDetectionOptions.min_separation_px must be >= 0");
+  if (!(psf_model_error >= 0.0 && psf_model_error < 1.0))
+    throw std::invalid_argument("AidedDetectionOptions.psf_model_error must be in [0, 1)");
 }
 
 double expected_noise_peaks(double u, double area_px2, double perimeter_px, double psf_sigma_px) {
@@ -187,6 +189,14 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
   out.centroid.peak_dn = at(best_x, best_y) - b;
   out.centroid.pixels = 1;
   out.centroid.sigma_px = aided_centroid_sigma_px(best, flux, opt);
+  {
+    const int ix = static_cast<int>(std::lround(cx)), iy = static_cast<int>(std::lround(cy));
+    std::vector<PsfFitPixel> fit;
+    for (int y = std::max(0, iy - r); y <= std::min(height - 1, iy + r); ++y)
+      for (int x = std::max(0, ix - r); x <= std::min(width - 1, ix + r); ++x)
+        fit.push_back({at(x, y) - b, pixel_psf_fraction(x, y, cx, cy, s)});
+    out.psf_chi2_z = psf_fit_chi2_z(fit, noise_dn, opt.gain_e_per_dn, opt.psf_model_error);
+  }
   return out;
 }
 

@@ -498,65 +498,58 @@ double iwcog_variance_px2(double s_w, double s_psf, double n_e, double b_e2) {
   return a / (n_e * r4) + std::numbers::pi * sw2 * sw2 * b_e2 / (2.0 * n_e * n_e * r4);
 }
 
-// Goodness of fit of a single PSF at the centroid (header, item 6): the
-// pixel-integrated Gaussian of width s at (xc, yc), amplitude by weighted
-// linear least squares, per-pixel variance noise^2 + model / gain +
-// (model_error * model)^2; returns (chi^2 - dof) / sqrt(2 dof), dof = n - 3
-// (x, y and the amplitude fitted), or 0 with too few pixels.
+// Goodness of fit of a single PSF at the centroid (header, item 6) over the
+// window's unsaturated, unmasked pixels.
 double psf_chi2_z(const Frame& f, const DetectionOptions& o, double noise_dn, int half, double xc, double yc) {
   const int ix = static_cast<int>(std::lround(xc)), iy = static_cast<int>(std::lround(yc));
-  const double k = 1.0 / (std::numbers::sqrt2 * o.psf_sigma_px);
-  // Per-axis fraction of the PSF on each pixel of the window (erf differences).
-  std::array<double, 64> gx{}, gy{};
-  const int n_side = 2 * half + 1;
-  if (n_side > static_cast<int>(gx.size())) return 0.0;
-  for (int i = 0; i < n_side; ++i) {
-    const double u = ix - half + i - xc, v = iy - half + i - yc;
-    gx[static_cast<std::size_t>(i)] = 0.5 * (std::erf((u + 0.5) * k) - std::erf((u - 0.5) * k));
-    gy[static_cast<std::size_t>(i)] = 0.5 * (std::erf((v + 0.5) * k) - std::erf((v - 0.5) * k));
-  }
-  struct Px {
-    double v, m;
-  };
-  std::vector<Px> pts;
-  pts.reserve(static_cast<std::size_t>(n_side * n_side));
+  std::vector<PsfFitPixel> pts;
+  pts.reserve(static_cast<std::size_t>((2 * half + 1) * (2 * half + 1)));
   for (int yy = std::max(0, iy - half); yy <= std::min(f.h - 1, iy + half); ++yy) {
     for (int xx = std::max(0, ix - half); xx <= std::min(f.w - 1, ix + half); ++xx) {
       if (f.value(xx, yy) >= o.saturation_dn || f.masked(xx, yy) != nullptr) continue;
-      pts.push_back({f.centroid_signal(xx, yy), gx[static_cast<std::size_t>(xx - ix + half)] *
-                                                     gy[static_cast<std::size_t>(yy - iy + half)]});
+      pts.push_back({f.centroid_signal(xx, yy), pixel_psf_fraction(xx, yy, xc, yc, o.psf_sigma_px)});
     }
   }
+  return psf_fit_chi2_z(pts, noise_dn, o.gain_e_per_dn, o.psf_model_error);
+}
+
+}  // namespace
+
+double pixel_psf_fraction(int x, int y, double xc, double yc, double psf_sigma_px) {
+  const double k = 1.0 / (std::numbers::sqrt2 * psf_sigma_px);
+  const double u = x - xc, v = y - yc;
+  return 0.25 * (std::erf((u + 0.5) * k) - std::erf((u - 0.5) * k)) * (std::erf((v + 0.5) * k) - std::erf((v - 0.5) * k));
+}
+
+double psf_fit_chi2_z(std::span<const PsfFitPixel> pts, double noise_dn, double gain_e_per_dn, double psf_model_error) {
   const std::size_t n = pts.size();
   if (n < 8) return 0.0;
   const double var0 = noise_dn * noise_dn;
   auto variance = [&](double model) {
-    return var0 + std::max(model, 0.0) / o.gain_e_per_dn + std::pow(o.psf_model_error * model, 2);
+    return var0 + std::max(model, 0.0) / gain_e_per_dn + std::pow(psf_model_error * model, 2);
   };
   // Amplitude: ordinary least squares, then once more with the variances of that model.
   double svm = 0.0, smm = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    svm += pts[i].v * pts[i].m;
-    smm += pts[i].m * pts[i].m;
+  for (const auto& p : pts) {
+    svm += p.signal_dn * p.psf_fraction;
+    smm += p.psf_fraction * p.psf_fraction;
   }
   double a = smm > 0.0 ? svm / smm : 0.0;
   svm = smm = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double w = 1.0 / variance(a * pts[i].m);
-    svm += w * pts[i].v * pts[i].m;
-    smm += w * pts[i].m * pts[i].m;
+  for (const auto& p : pts) {
+    const double w = 1.0 / variance(a * p.psf_fraction);
+    svm += w * p.signal_dn * p.psf_fraction;
+    smm += w * p.psf_fraction * p.psf_fraction;
   }
   a = smm > 0.0 ? svm / smm : 0.0;
   double chi2 = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double r = pts[i].v - a * pts[i].m;
-    chi2 += r * r / variance(a * pts[i].m);
+  for (const auto& p : pts) {
+    const double r = p.signal_dn - a * p.psf_fraction;
+    chi2 += r * r / variance(a * p.psf_fraction);
   }
   const double dof = static_cast<double>(n) - 3.0;
   return (chi2 - dof) / std::sqrt(2.0 * dof);
 }
-
-}  // namespace
 
 DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int height,
                        const DetectionOptions& o) {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 #include <stdexcept>
 
@@ -274,6 +275,7 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
       for (const auto& u : blend_stars_) add(u);
     }
   }
+  last_.catalog_px = catalog_px;
   const auto& P = opt_.persistence;
   const double cos_star = std::cos(P.star_tolerance_rad);
   Seen now{t_s, {}, {}};
@@ -350,6 +352,73 @@ std::optional<bool> FrameProcessor::source_before(const Eigen::Vector3d& u_eci, 
   return std::nullopt;
 }
 
+std::optional<FrameProcessor::StackedSky> FrameProcessor::stacked_sky(std::span<const std::uint16_t> pixels,
+                                                                       const Eigen::Vector3d& u_eci,
+                                                                       const Eigen::Vector2d& detection_px,
+                                                                       const AidedDetectionOptions& options,
+                                                                       double ring_px,
+                                                                       double neighbour_false_alarms) const {
+  const int R = static_cast<int>(std::floor(ring_px));
+  constexpr double kInner = 1.5;
+  // Offsets in the stack; the star field between frames a minute apart
+  // moves by a translation (the camera turns about an axis across its
+  // boresight), so whole-pixel offsets carry over.
+  std::vector<Eigen::Vector2d> offsets;
+  for (int dy = -R; dy <= R; ++dy)
+    for (int dx = -R; dx <= R; ++dx)
+      if (std::hypot(dx, dy) <= ring_px) offsets.emplace_back(dx, dy);
+  // Per offset: the sum of nu over the frames that see it clear of hot
+  // pixels (fixed on the sensor, not in the sky: this frame's lone sharp
+  // pixels and the learned map) anywhere under the kernel (half-width
+  // ceil(3 s)), and their count.
+  std::vector<double> sum(offsets.size(), 0.0);
+  std::vector<int> count(offsets.size(), 0);
+  int frames = 0;
+  const double r_kernel = std::ceil(3.0 * options.psf_sigma_px) + 0.5;
+  const auto add = [&](const Last& frame, std::span<const std::uint16_t> px) {
+    if (!frame.attitude_usable || !(frame.noise_dn > 0.0)) return;
+    if (px.size() != static_cast<std::size_t>(K_.width) * static_cast<std::size_t>(K_.height)) return;
+    const auto p = K_.project(frame.R_eci_from_cam.transpose() * u_eci);
+    if (!p || (*p - detection_px).norm() < ring_px + 4.0) return;
+    std::vector<Eigen::Vector2d> hot;
+    for (const auto& h : hot_pixels(frame))
+      if ((h - *p).norm() < ring_px + 2.0 * r_kernel) hot.push_back(h);
+    std::vector<std::optional<double>> nu(offsets.size());
+    for (std::size_t i = 0; i < offsets.size(); ++i) {
+      const Eigen::Vector2d q = *p + offsets[i];
+      const auto v = imp::forced_snr(px, K_.width, K_.height, q, frame.noise_dn, options.psf_sigma_px);
+      if (!v) return;  // too close to the edge
+      if (std::none_of(hot.begin(), hot.end(),
+                       [&](const Eigen::Vector2d& h) { return (h - q).cwiseAbs().maxCoeff() <= r_kernel; }))
+        nu[i] = *v;
+    }
+    for (std::size_t i = 0; i < offsets.size(); ++i) {
+      if (!nu[i]) continue;
+      sum[i] += *nu[i];
+      ++count[i];
+    }
+    ++frames;
+  };
+  add(last_, pixels);
+  for (const Last& frame : recent_) add(frame, frame.pixels);
+  if (frames == 0) return std::nullopt;
+  StackedSky out;
+  out.frames = frames;
+  for (std::size_t i = 0; i < offsets.size(); ++i) {
+    if (count[i] == 0) continue;
+    const double nu = sum[i] / std::sqrt(static_cast<double>(count[i])), d = offsets[i].norm();
+    if (d == 0.0) out.snr_at = nu;
+    if (d >= kInner && nu > out.neighbour_snr) {
+      out.neighbour_snr = nu;
+      out.neighbour_offset_px = offsets[i];
+    }
+  }
+  const SearchRegion annulus{std::numbers::pi * (ring_px * ring_px - kInner * kInner),
+                             2.0 * std::numbers::pi * (ring_px + kInner)};
+  out.neighbour_threshold = false_alarm_threshold_snr(neighbour_false_alarms, annulus, options.psf_sigma_px);
+  return out;
+}
+
 void FrameProcessor::keep_recent_frames(int n) {
   keep_recent_ = static_cast<std::size_t>(std::max(0, n));
   while (recent_.size() > keep_recent_) recent_.pop_back();
@@ -415,7 +484,17 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   cand.u_eci = (last_.R_eci_from_cam * cand.u_cam).normalized();
   double sigma_px = a.centroid.sigma_px;
   if (expected_snr) sigma_px = aided_centroid_sigma_px(snr_for_sigma(a.snr, *expected_snr), a.centroid.flux_dn, options);
-  cand.sigma_rad = std::hypot(sigma_px / K_.fx, last_.attitude_sigma_rad);
+  // The blend rules of process()'s candidates: a poor single-PSF fit, a
+  // detection or a catalogued star within blend_radius_px.
+  const Eigen::Vector2d cp(cand.x_px, cand.y_px);
+  const auto within = [&](const std::vector<Eigen::Vector2d>& pts) {
+    return std::any_of(pts.begin(), pts.end(),
+                       [&](const Eigen::Vector2d& q) { return (q - cp).norm() < opt_.blend_radius_px; });
+  };
+  cand.psf_chi2_z = a.psf_chi2_z;
+  cand.on_catalog_star = within(last_.catalog_px);
+  cand.blended = a.psf_chi2_z > opt_.blend_chi2_z || within(last_.detections_px) || cand.on_catalog_star;
+  cand.sigma_rad = std::hypot(blend_sigma_px(sigma_px, cand.blended, opt_) / K_.fx, last_.attitude_sigma_rad);
   const auto& P = opt_.persistence;
   while (!aided_seen_.empty() && last_.t_s - aided_seen_.front().first > P.history_max_age_s) aided_seen_.pop_front();
   const double cos_star = std::cos(P.star_tolerance_rad);

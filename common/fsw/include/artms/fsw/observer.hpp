@@ -98,6 +98,8 @@ class Observer {
     std::size_t measurements_released = 0;
     std::uint32_t aided_detections = 0;
     std::uint32_t direct_refused_star = 0;
+    std::uint32_t direct_refused_stacked_star = 0;  // a source at the direction in the stack of other frames
+    std::uint32_t direct_blended_stacked = 0;       // a neighbour within the blend radius in that stack
     std::uint32_t direct_refused_unverified = 0;
     std::uint32_t isl_sent = 0, isl_received = 0, isl_rejected = 0;
   };
@@ -110,6 +112,13 @@ class Observer {
     double sigma_r = 0.0, sigma_v = 0.0;
   };
   static constexpr int kFaintStarFramesBefore = 4;  // frames IMP keeps for the faint-star check
+  // The stacked check of a single detection (FrameProcessor::stacked_sky,
+  // over the next frame and the kept ones): a source at its direction with
+  // stacked nu >= kStackedStarSnr (noise alone: 0.13 %) is a faint star; a
+  // neighbour within the blend radius above the annulus threshold for
+  // kStackedNeighbourFalseAlarms makes it a blend (blend_sigma_px added).
+  static constexpr double kStackedStarSnr = 3.0;
+  static constexpr double kStackedNeighbourFalseAlarms = 0.01;
   struct PendingDirect {
     std::uint32_t frame_seq;
     std::int64_t t_ns;

@@ -49,6 +49,8 @@ struct AidedDetectionOptions {
   // A peak this close to a detection of the frame (a star, another target,
   // a candidate) is that detection's wing, not a new source.
   double min_separation_px = 4.0;
+  // The blend test's PSF model error (DetectionOptions::psf_model_error).
+  double psf_model_error = 0.05;
   void validate() const;
 };
 
@@ -59,6 +61,11 @@ struct AidedDetection {
   double snr = 0.0;      // matched-filter nu at the peak
   int peaks = 0;         // local maxima above the threshold inside the region
   double threshold_snr = 0.0;  // the threshold this search used (0: not searched)
+  // The blend test of detect() (detection.hpp, item 6) at the centroid, over
+  // the centroid window: about N(0, 1) for an isolated spot. At a faint
+  // target's SNR a neighbour 2.5 px away hardly moves it (mean 0.5 for one
+  // as bright): FrameProcessor::stacked_sky looks for those.
+  double psf_chi2_z = 0.0;
 };
 
 // Expected number of local maxima above u of the matched-filter SNR field of

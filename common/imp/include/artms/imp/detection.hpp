@@ -253,6 +253,23 @@ struct DetectionResult {
   std::string why;  // empty when usable
 };
 
+// The blend test of item 6 on any window. PsfFitPixel: a pixel's
+// background-subtracted value and the fraction of a unit-flux PSF on it
+// (pixel_psf_fraction). The amplitude is fitted by weighted least squares
+// (per-pixel variance noise^2 + model / gain + (model_error * model)^2, the
+// model's variances iterated once); returns (chi^2 - dof) / sqrt(2 dof),
+// dof = n - 3 (position and amplitude fitted), or 0 with fewer than 8 pixels.
+struct PsfFitPixel {
+  double signal_dn = 0.0;
+  double psf_fraction = 0.0;
+};
+[[nodiscard]] double psf_fit_chi2_z(std::span<const PsfFitPixel> pixels, double noise_dn, double gain_e_per_dn,
+                                    double psf_model_error);
+// Fraction of a unit-flux Gaussian spot (sigma psf_sigma_px) centred at
+// (xc, yc) that falls on pixel (x, y) (pixel centres at integers; erf
+// differences per axis).
+[[nodiscard]] double pixel_psf_fraction(int x, int y, double xc, double yc, double psf_sigma_px);
+
 // Detects point sources in a width x height row-major frame.
 // Throws std::invalid_argument if pixels.size() != width * height or the
 // options are invalid.

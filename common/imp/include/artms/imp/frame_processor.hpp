@@ -169,6 +169,7 @@ class FrameProcessor {
   // deeper than the identification one (stars too faint to identify still
   // move a target's centroid). Empty (the default): the identification catalog.
   void set_blend_stars(std::vector<Eigen::Vector3d> u_eci) { blend_stars_ = std::move(u_eci); }
+  [[nodiscard]] const FrameProcessorOptions& options() const { return opt_; }
   // SOD-aided detection (aided_detection.hpp) in the frame process() took
   // last, which must have had a usable attitude: a candidate near the
   // predicted pixel, or nullopt with the reason in *why. A source at the
@@ -190,6 +191,35 @@ class FrameProcessor {
   // nullopt when none does (or none is kept).
   [[nodiscard]] std::optional<bool> source_before(const Eigen::Vector3d& u_eci, const AidedDetectionOptions& options,
                                                   double tolerance_px = 1.0) const;
+  // The sky at inertial direction u_eci stacked over the frames that show it
+  // with the target elsewhere: the frame process() took last (pixels: that
+  // frame) and the kept ones (keep_recent_frames). A frame in which the
+  // direction lies within ring_px + 4 px of detection_px (the detection's
+  // pixel in its own frame; the camera holds a target nearly still, so the
+  // target would be there) is left out, the detection's own frame with it.
+  // Forced photometry (forced_snr) of each frame at the direction and at
+  // every whole-pixel offset within ring_px, summed over the frames and
+  // divided by sqrt(frames): unit variance on noise, sqrt(frames) deeper
+  // than one frame. An offset whose kernel (half-width ceil(3 s)) holds one
+  // of a frame's hot pixels (hot_pixels: fixed on the sensor, not in the
+  // sky) leaves that frame out there. A star 2-6 px from a faint target
+  // pulls its centroid by a good part of its 1-sigma (3 times as bright at
+  // 5 px: 0.2 px), yet one fainter than the frame's threshold is found
+  // neither by detect() nor by the blend test at a faint target's SNR
+  // (docs/imp_samus.md "Faint stars beside a faint target"). nullopt: no
+  // frame shows the direction.
+  struct StackedSky {
+    int frames = 0;
+    double snr_at = 0.0;           // stacked nu at the direction itself
+    double neighbour_snr = 0.0;    // the largest stacked nu at 1.5 px to ring_px from it
+    double neighbour_threshold = 0.0;  // for neighbour_false_alarms on that annulus (false_alarm_threshold_snr)
+    Eigen::Vector2d neighbour_offset_px = Eigen::Vector2d::Zero();
+  };
+  [[nodiscard]] std::optional<StackedSky> stacked_sky(std::span<const std::uint16_t> pixels,
+                                                      const Eigen::Vector3d& u_eci,
+                                                      const Eigen::Vector2d& detection_px,
+                                                      const AidedDetectionOptions& options, double ring_px,
+                                                      double neighbour_false_alarms) const;
   // Keep the pixels of the last n frames with an attitude (before the one
   // process() took last) for source_before. 0 (the default): none.
   void keep_recent_frames(int n);
@@ -243,6 +273,7 @@ class FrameProcessor {
     Eigen::Matrix3d R_eci_from_cam = Eigen::Matrix3d::Identity();
     std::vector<Eigen::Vector2d> detections_px;
     std::vector<Eigen::Vector2d> hot_px;  // this frame's lone sharp pixels (DetectionResult::hot_suspects)
+    std::vector<Eigen::Vector2d> catalog_px;  // the blend check's catalogued stars on the sensor
     std::vector<std::uint16_t> pixels;    // kept for source_before only
   } last_;
   std::deque<Last> recent_;  // frames with an attitude before last_, most recent first
