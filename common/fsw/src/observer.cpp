@@ -479,13 +479,13 @@ void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
                                      std::to_string(n_.direct_refused_star) +
                                      " single detections refused as faint stars (seen again at the same "
                                      "inertial direction), " +
-                                     std::to_string(n_.direct_refused_stacked_star) +
-                                     " refused as faint stars in the stack of other frames, " +
-                                     std::to_string(n_.direct_blended_stacked) +
-                                     " weighted as blends (a faint neighbour in that stack), " +
                                      std::to_string(n_.direct_refused_unverified) +
-                                     " refused unchecked (no frame before or after saw their direction; "
-                                     "validity region too wide)");
+                                     " refused unchecked (no frame could check them; region too wide)");
+  // A second line: event texts are bounded (bus::kEventTextChars).
+  events_.info(t.ns_since_j2000, "IMP, the sky stacked over the other frames at single detections' directions: " +
+                                     std::to_string(n_.direct_refused_stacked_star) + " refused as faint stars, " +
+                                     std::to_string(n_.direct_blended_stacked) +
+                                     " weighted as blends (a faint neighbour within the blend radius)");
 }
 
 bus::NavTelemetry Observer::navigation(astro::TimeTT t) const {
