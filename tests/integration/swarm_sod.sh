@@ -112,6 +112,25 @@ for r in rows[:: max(1, len(rows) // 200)]:
     e = np.array([float(r[f"err_a_{n}_m"]) for n in names])
     # (to 1 %: the errors are written to 0.1 mm and the covariance is nearly singular along the range)
     assert abs(e @ np.linalg.solve(P, e) - float(r["nees"])) <= 1e-2 * float(r["nees"]) + 1e-3, r
+# Convergence as summary.json counts it: the printed orbit is the time of the CSV row from which the a*dlambda
+# error stays within 1 % of the true range (or "never"), in orbits from the first GNSS fix.
+out = open(f"{w}/replay.out").read()
+period_s = float(re.search(r"orbits of ([0-9.]+) s from the first fix", out).group(1))
+t_fix = next(int(g["t_tt_ns"]) for g in csv.DictReader(open(f"{w}/run/gnss.csv"))
+             if g["spacecraft"] == "SV4" and g["valid"] == "1")
+for tgt in sorted({r["target"] for r in rows}):
+    tr = [r for r in rows if r["target"] == tgt]
+    k = len(tr)
+    while k > 0 and abs(float(tr[k - 1]["err_a_dlambda_m"])) <= 0.01 * float(tr[k - 1]["range_m"]):
+        k -= 1
+    mm = re.search(tgt + r": .*within 1 % of range from (never|([0-9.]+) orbits) on", out)
+    assert mm, f"no convergence figure for {tgt}"
+    if k == len(tr):
+        assert mm.group(1) == "never", (tgt, mm.group(1))
+    else:
+        expected = (int(tr[k]["t_tt_ns"]) - t_fix) * 1e-9 / period_s
+        assert mm.group(2) and abs(float(mm.group(2)) - expected) <= 0.006, (tgt, mm.group(1), expected)
+    print(f"  replay {tgt}: within 1 % of range from {mm.group(1)} on, as its CSV gives")
 m = re.search(r"SV2: (\d+) of \d+ bearings fused; average NEES after orbit 1.0: ([0-9.]+) ", open(f"{w}/replay_synthetic.out").read())
 assert m and int(m.group(1)) > 50 and 0.0 < float(m.group(2)) < 30.0, "synthetic replay"
 print("swarm sod: ok")

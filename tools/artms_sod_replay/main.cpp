@@ -437,7 +437,7 @@ int run(int argc, char** argv) {
                  "ID=da,dlambda,dex,dey,dix,diy in a*ROE metres, repeatable, replacing the uplink's for that "
                  "target; 'none' drops every target's (default: the uplink's)");
   app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES, the reported "
-                 "covariance's upper triangle (m^2, space-separated)");
+                 "covariance's upper triangle (m^2, space-separated), the true range (m)");
   CLI11_PARSE(app, argc, argv);
 
   const std::string up_path = run_dir + "/uplink/" + observer + ".json";
@@ -608,13 +608,17 @@ int run(int argc, char** argv) {
     if (!csv) throw std::runtime_error("cannot write " + csv_out);
     std::fprintf(csv, "t_tt_ns,target,err_a_da_m,err_a_dlambda_m,err_a_dex_m,err_a_dey_m,err_a_dix_m,err_a_diy_m,"
                       "sigma_a_da_m,sigma_a_dlambda_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_dix_m,sigma_a_diy_m,nees,"
-                      "cov_upper_m2\n");
+                      "cov_upper_m2,range_m\n");
   }
   std::int64_t t0 = 0;
   double period_s = 0.0, a_m = 0.0;
   std::vector<double> nees_sum(static_cast<std::size_t>(n), 0.0);
   std::vector<int> nees_steps(static_cast<std::size_t>(n), 0), fused(static_cast<std::size_t>(n), 0),
       offered(static_cast<std::size_t>(n), 0);
+  // Convergence as summary.json counts it (evaluation.hpp): the first step
+  // after which the a*dlambda error stays within 1 % of the true range.
+  std::vector<int> steps_after_outside(static_cast<std::size_t>(n), 0);
+  std::vector<double> first_step_after_outside(static_cast<std::size_t>(n), 0.0);
   std::size_t next_bearing = 0;
   const auto gnss = io::CsvTable::read(run_dir + "/gnss.csv");
   for (std::size_t r = 0; r < gnss.size(); ++r) {
@@ -693,6 +697,13 @@ int run(int argc, char** argv) {
         Pk.diagonal() += (gp->second / a_obs_m).cwiseAbs2();
       }
       const double nees = d.dot(Pk.ldlt().solve(d));
+      const auto ku = static_cast<std::size_t>(k);
+      const double range_m = (it->second.at(id).r_m - it->second.at(observer).r_m).norm();
+      if (std::abs(d[1] * a_m) > 0.01 * range_m) {
+        steps_after_outside[ku] = 0;
+      } else if (steps_after_outside[ku]++ == 0) {
+        first_step_after_outside[ku] = orbits;
+      }
       if (orbits >= after_orbits) {
         nees_sum[static_cast<std::size_t>(k)] += nees;
         ++nees_steps[static_cast<std::size_t>(k)];
@@ -705,7 +716,7 @@ int run(int argc, char** argv) {
         std::fprintf(csv, ",%.4f,", nees);
         for (int i = 0; i < 6; ++i)
           for (int j = i; j < 6; ++j) std::fprintf(csv, "%s%.10e", i + j ? " " : "", Pk(i, j) * a_m * a_m);
-        std::fprintf(csv, "\n");
+        std::fprintf(csv, ",%.3f\n", range_m);
       }
     }
   }
@@ -720,15 +731,19 @@ int run(int argc, char** argv) {
                              "its frame (frames.csv); nothing to replay");
   const sod::SodFilter& f = *filter;
   std::printf("%s, observer %s, bearings %s (seed %llu, sigma x %.2f); %d recorded bearings not within 3 px of a "
-              "target, %d left out as blended, %d recorded twice fused once\n",
+              "target, %d left out as blended, %d recorded twice fused once; orbits of %.1f s from the first fix\n",
               run_dir.c_str(), observer.c_str(), bearings_mode.c_str(), static_cast<unsigned long long>(seed),
-              sigma_scale, unassigned, blended, repeated);
+              sigma_scale, unassigned, blended, repeated, period_s);
   for (int k = 0; k < n; ++k) {
     const auto ku = static_cast<std::size_t>(k);
+    char converged[64] = "never";
+    if (steps_after_outside[ku] > 0)
+      std::snprintf(converged, sizeof converged, "%.2f orbits", first_step_after_outside[ku]);
     std::printf("  %s: %d of %d bearings fused; average NEES after orbit %.1f: %.2f (%d steps); final a*dlambda "
-                "1-sigma %.0f m\n",
+                "1-sigma %.0f m; within 1 %% of range from %s on\n",
                 ids[ku].c_str(), fused[ku], offered[ku], after_orbits,
-                nees_steps[ku] ? nees_sum[ku] / nees_steps[ku] : std::nan(""), nees_steps[ku], f.a_roe_sigma_m(k)[1]);
+                nees_steps[ku] ? nees_sum[ku] / nees_steps[ku] : std::nan(""), nees_steps[ku], f.a_roe_sigma_m(k)[1],
+                converged);
   }
   return 0;
 }
