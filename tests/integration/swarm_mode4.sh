@@ -54,6 +54,10 @@ if "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings pixel 2> "$W
   echo "FAIL: --bearings pixel accepted in mode 4"; exit 1
 fi
 grep -q "modes 1 and 3 only" "$WORK/replay_pixel.err"
+if "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --innovations "$WORK/inn.csv" 2> "$WORK/replay_inn.err"; then
+  echo "FAIL: --innovations accepted in mode 4"; exit 1
+fi
+grep -q -- "--innovations: modes 1 and 3 only" "$WORK/replay_inn.err" || { cat "$WORK/replay_inn.err"; exit 1; }
 "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings synthetic --leave-out 'SV3>SV2' > "$WORK/replay_leave.out"
 "$BIN/artms-sod-replay" "$WORK/inproc" --observer SV4 --bearings synthetic --noise-scale 0 --start-roe truth \
   > "$WORK/replay_truth.out"

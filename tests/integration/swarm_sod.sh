@@ -32,7 +32,8 @@ assert t["final_dlambda_error_pct"] < 2.0 and t["final_dlambda_sigma_pct"] < 3.0
 assert min(t["frac_within_3sigma"].values()) >= 0.9, t["frac_within_3sigma"]
 assert o["absolute"]["final_pos_error_m"] is not None and o["absolute"]["final_pos_error_m"] < 50, o["absolute"]
 PY
-"$BIN/artms-sod-replay" "$WORK/run" --csv "$WORK/replay.csv" > "$WORK/replay.out" || { cat "$WORK/replay.out"; exit 1; }
+"$BIN/artms-sod-replay" "$WORK/run" --csv "$WORK/replay.csv" --innovations "$WORK/innovations.csv" > "$WORK/replay.out" \
+  || { cat "$WORK/replay.out"; exit 1; }
 "$BIN/artms-sod-replay" "$WORK/run" --bearings synthetic --after-orbits 1 > "$WORK/replay_synthetic.out"
 cat "$WORK/replay.out" "$WORK/replay_synthetic.out"
 # A bearing recorded twice (an aided detection that is also a track's) is
@@ -131,6 +132,21 @@ for tgt in sorted({r["target"] for r in rows}):
         expected = (int(tr[k]["t_tt_ns"]) - t_fix) * 1e-9 / period_s
         assert mm.group(2) and abs(float(mm.group(2)) - expected) <= 0.006, (tgt, mm.group(1), expected)
     print(f"  replay {tgt}: within 1 % of range from {mm.group(1)} on, as its CSV gives")
+# --innovations: one row per bearing offered to the filter; the whitened innovation's squared length is its NIS,
+# and it lies across the line of sight (SV2 is behind SV4: little along-track).
+inn = list(csv.DictReader(open(f"{w}/innovations.csv")))
+for tgt in sorted({r["target"] for r in rows}):
+    mm = re.search(tgt + r": (\d+) of (\d+) bearings fused", out)
+    ti = [r for r in inn if r["target"] == tgt]
+    assert len(ti) == int(mm.group(2)) and sum(int(r["fused"]) for r in ti) == int(mm.group(1)), (tgt, len(ti), mm.groups())
+    for r in ti:
+        wv = np.array([float(r["w_r"]), float(r["w_t"]), float(r["w_n"])])
+        assert abs(wv @ wv - float(r["nis"])) <= 1e-4 * float(r["nis"]) + 1e-5, r
+    wr = np.array([[float(r["w_r"]), float(r["w_t"]), float(r["w_n"])] for r in ti])
+    share_t = float(np.sum(wr[:, 1] ** 2) / np.sum(wr ** 2))
+    assert share_t < 0.05, (tgt, share_t)
+    print(f"  replay {tgt} innovations: {len(ti)} rows, mean NIS {np.mean([float(r['nis']) for r in ti]):.2f}, "
+          f"along-track share {share_t:.4f}")
 m = re.search(r"SV2: (\d+) of \d+ bearings fused; average NEES after orbit 1.0: ([0-9.]+) ", open(f"{w}/replay_synthetic.out").read())
 assert m and int(m.group(1)) > 50 and 0.0 < float(m.group(2)) < 30.0, "synthetic replay"
 print("swarm sod: ok")

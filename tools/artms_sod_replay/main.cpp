@@ -346,7 +346,7 @@ int run(int argc, char** argv) {
   CLI::App app{"Run SOD again, offline, on a run folder's recorded GNSS fixes and IMP bearings of one observer,\n"
                "and report each target's consistency against the truth (an evaluation tool: reads truth).",
                "artms-sod-replay"};
-  std::string run_dir, observer = "SV4", bearings_mode = "measured", csv_out;
+  std::string run_dir, observer = "SV4", bearings_mode = "measured", csv_out, innovations_out;
   std::uint64_t seed = 1;
   double sigma_scale = 1.0, after_orbits = 4.0, min_separation_px = 0.0, report_ahead_s = 0.0;
   app.add_option("run", run_dir, "run folder (artms-swarm run --out)")->required();
@@ -438,6 +438,10 @@ int run(int argc, char** argv) {
                  "target; 'none' drops every target's (default: the uplink's)");
   app.add_option("--csv", csv_out, "per step and target: t_tt_ns, target, a*ROE errors (m), 1-sigmas (m), NEES, the reported "
                  "covariance's upper triangle (m^2, space-separated), the true range (m)");
+  app.add_option("--innovations", innovations_out,
+                 "modes 1 and 3: per bearing offered: t_tt_ns, target, its pre-fit innovation whitened by its "
+                 "innovation covariance (taken as isotropic: the innovation times sqrt(NIS) / |innovation|) in the "
+                 "filter's own RTN frame of the observer (w_r, w_t, w_n), NIS, fused (1/0), gated (1/0)");
   CLI11_PARSE(app, argc, argv);
 
   const std::string up_path = run_dir + "/uplink/" + observer + ".json";
@@ -470,6 +474,8 @@ int run(int argc, char** argv) {
     tuning.target_lines = target_lines == "consider_observer" ? config::SodTuning::TargetLines::kConsiderObserver
                                                               : config::SodTuning::TargetLines::kUpdateObserver;
   }
+  if (up.observer.mode == 4 && !innovations_out.empty())
+    throw std::runtime_error("--innovations: modes 1 and 3 only (" + observer + " ran mode 4)");
   if (up.observer.mode == 4) {
     ReplayOptions ro;
     ro.bearings_mode = bearings_mode;
@@ -610,6 +616,12 @@ int run(int argc, char** argv) {
                       "sigma_a_da_m,sigma_a_dlambda_m,sigma_a_dex_m,sigma_a_dey_m,sigma_a_dix_m,sigma_a_diy_m,nees,"
                       "cov_upper_m2,range_m\n");
   }
+  std::FILE* innovations = nullptr;
+  if (!innovations_out.empty()) {
+    innovations = std::fopen(innovations_out.c_str(), "w");
+    if (!innovations) throw std::runtime_error("cannot write " + innovations_out);
+    std::fprintf(innovations, "t_tt_ns,target,w_r,w_t,w_n,nis,fused,gated\n");
+  }
   std::int64_t t0 = 0;
   double period_s = 0.0, a_m = 0.0;
   std::vector<double> nees_sum(static_cast<std::size_t>(n), 0.0);
@@ -664,9 +676,21 @@ int run(int argc, char** argv) {
         if (tb.t.ns_since_j2000 > t_ns || (!inclusive && tb.t.ns_since_j2000 == t_ns)) break;
         ++offered[static_cast<std::size_t>(tb.b.target)];
         const Eigen::Matrix3d R = frame_about(tb.b.u_eci);
-        if (filter->update_bearing(sod::bearing_measurement_from_unit_eci(tb.t, tb.b.target, tb.b.u_eci, tb.b.sigma_rad, R))
-                .usable)
-          ++fused[static_cast<std::size_t>(tb.b.target)];
+        const sod::UpdateSummary us =
+            filter->update_bearing(sod::bearing_measurement_from_unit_eci(tb.t, tb.b.target, tb.b.u_eci, tb.b.sigma_rad, R));
+        if (us.usable) ++fused[static_cast<std::size_t>(tb.b.target)];
+        if (innovations && us.prefit_residual.size() == 2 && std::isfinite(us.nis)) {
+          // Near the line of sight (R's z axis): az ~ the offset along R's y axis, el along its x axis (eq. 2).
+          const Eigen::Vector3d nu_eci =
+              us.prefit_residual[0] * R.row(1).transpose() + us.prefit_residual[1] * R.row(0).transpose();
+          const double nu_norm = nu_eci.norm();
+          const Eigen::Vector3d w_rtn =
+              astro::R_rtn_from_eci(astro::cartesian_from_qns(filter->observer())) *
+              (nu_norm > 0.0 ? Eigen::Vector3d(nu_eci * std::sqrt(us.nis) / nu_norm) : Eigen::Vector3d::Zero());
+          std::fprintf(innovations, "%lld,%s,%.6f,%.6f,%.6f,%.6f,%d,%d\n", static_cast<long long>(tb.t.ns_since_j2000),
+                       ids[static_cast<std::size_t>(tb.b.target)].c_str(), w_rtn.x(), w_rtn.y(), w_rtn.z(), us.nis,
+                       us.usable ? 1 : 0, us.gated ? 1 : 0);
+        }
       }
     };
     fuse_until(g.t.ns_since_j2000, false);
@@ -721,6 +745,7 @@ int run(int argc, char** argv) {
     }
   }
   if (csv) std::fclose(csv);
+  if (innovations) std::fclose(innovations);
   if (!filter) throw std::runtime_error(run_dir + "/gnss.csv: no valid fix of " + observer);
   if (!bearings.empty() && std::all_of(offered.begin(), offered.end(), [](int c) { return c == 0; }))
     throw std::runtime_error(run_dir + ": none of the " + std::to_string(bearings.size()) + " bearings of " + observer +
