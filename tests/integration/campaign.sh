@@ -87,6 +87,16 @@ for k, t in c["targets"].items():
     assert all(x >= 0 for x in p + z) and sum(p) > 0, (k, bd)
     with_directions += 1
 assert with_directions >= 1, {k: t.get("by_direction") for k, t in c["targets"].items()}
+import math
+with_spread = 0
+for k, t in c["targets"].items():
+    sp = t.get("nees_spread")
+    if sp is None:
+        continue
+    assert sp["variance_of_average"] >= 0 and sp["variance_with_runs_shifted"] >= 0, (k, sp)
+    assert abs(sp["common_sd"] - math.sqrt(max(sp["variance_of_average"] - sp["variance_with_runs_shifted"], 0.0))) < 1e-9, (k, sp)
+    with_spread += 1
+assert with_spread >= 1, {k: t.get("nees_spread") for k, t in c["targets"].items()}
 # Oracle: per step, the principal directions' squares (numpy's eigenvectors of nav/targets.csv's
 # covariance) sum to the evaluation's NEES (C++, eval/targets.csv).
 sys.path.insert(0, os.path.join(os.environ["ARTMS_SOURCE_DIR"], "tools", "python"))

@@ -187,6 +187,31 @@ class TimeTest(unittest.TestCase):
             self.assertAlmostEqual(tt_ns_from_utc(text) * 1e-9, tt_s, delta=1e-5)
 
 
+class NeesSpreadTest(unittest.TestCase):
+    """campaign.nees_spread_entry: the part of the run-average NEES common to the runs."""
+
+    def series(self, rng, runs, steps, common=None):
+        import numpy as np
+        # chi2(6) per step, correlated over ~10 steps (a moving average), as a filter's NEES is.
+        raw = rng.chisquare(6, size=(runs, steps + 9))
+        m = np.array([np.convolve(r, np.ones(10) / 10, mode="valid") for r in raw])
+        return m + (common if common is not None else 0.0)
+
+    def test_independent_runs_have_no_common_part_and_a_shared_swing_is_found(self):
+        import numpy as np
+        sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "..", "tools",
+                                        "artms_swarm"))
+        from campaign import nees_spread_entry
+        rng = np.random.default_rng(7)
+        alone = [nees_spread_entry(self.series(rng, 20, 600))["common_sd"] for _ in range(5)]
+        self.assertLess(max(alone), 0.25, alone)
+        swing = 1.2 * np.sin(np.arange(600) * 2 * np.pi / 150)  # sd 0.85, in every run alike
+        found = [nees_spread_entry(self.series(rng, 20, 600, swing))["common_sd"] for _ in range(5)]
+        self.assertTrue(all(0.7 < f < 1.0 for f in found), found)
+        self.assertIsNone(nees_spread_entry(self.series(rng, 1, 600)))
+        self.assertIsNone(nees_spread_entry(np.full((20, 600), np.nan)))
+
+
 class RunFolderTest(unittest.TestCase):
     """On a real run folder (RUN_DIR), when given."""
 

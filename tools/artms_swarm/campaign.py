@@ -579,6 +579,7 @@ def summarise(out, seeds, meta, failures):
                     "frac_inside_band_after_median": frac_med})
                 plot_nees(out, obs, tgt, orb, avg, lo, hi, start, start_med, frac, frac_med, Rt)
                 entry["nis"] = nis_entry(nis.get(key, []), t0, period or 5700.0, start, start_med)
+                entry["nees_spread"] = nees_spread_entry(M[:, sel]) if sel.any() else None
                 entry["common_to_every_seed"] = common_mode_entry(zs.get(key, []), times, sel)
                 entry["by_direction"] = direction_entry(zs.get(key, []), pz.get(key, []), times, sel)
         entry["convergence_orbits"] = cs
@@ -640,6 +641,40 @@ def common_mode_entry(runs, times, sel):
     return {"roe": list(ROE_NAMES), "rms_seed_mean_z": [float(x) for x in common],
             "rms_z": [float(x) for x in total], "ratio_to_independent": [float(x) for x in ratio],
             "note": COMMON_NOTE}
+
+
+SPREAD_NOTE = ("The R-run average NEES over the steps after the latest convergence: its variance over those "
+               "steps, against the same variance when each run's series is shifted in time by its own random lag "
+               "(circularly within the steps; the mean over 50 draws): the shifts keep every run's own scatter and "
+               "its correlation in time and take away only what moves the runs together with the time since the "
+               "start. The rest is that common part (sd = its square root; 0 when the rest is negative). The band "
+               "assumes none: a common part of sd comparable to the band's half-width puts whole stretches outside "
+               "it, above and below, while the mean NEES is right.")
+
+
+def nees_spread_entry(M, draws=50):
+    """M: runs x steps NEES (NaN allowed). Variance of the run-average over the steps, the same with every run
+    shifted by its own random circular lag (the mean over `draws`), and the common part's sd (SPREAD_NOTE);
+    None with fewer than 2 runs or 4 steps."""
+    import warnings
+    import numpy as np
+    M = np.asarray(M, dtype=float)
+    if M.ndim != 2 or M.shape[0] < 2 or M.shape[1] < 4:
+        return None
+    M = M[:, np.all(np.isfinite(M), axis=0)]
+    R, n = M.shape
+    if n < 4:
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        var_avg = float(np.var(M.mean(axis=0), ddof=1))
+        rng = np.random.default_rng(20240508)
+        idx = np.arange(n)
+        shifted = [float(np.var(np.mean([row[(idx + int(k)) % n] for row, k in zip(M, rng.integers(0, n, R))],
+                                        axis=0), ddof=1)) for _ in range(draws)]
+    base = float(np.mean(shifted))
+    return {"variance_of_average": var_avg, "variance_with_runs_shifted": base,
+            "common_sd": float(math.sqrt(max(var_avg - base, 0.0))), "note": SPREAD_NOTE}
 
 
 DIRECTION_NOTE = ("Mean (error / 1-sigma)^2 over the runs and the steps after the latest convergence, per ROE "
@@ -924,6 +959,13 @@ def print_table(s, out):
         if w and w["orbits"] > 0.0:
             print(f"{k}: seed {w['seed']} is beyond 5 sigma while reported healthy for {w['orbits']:.2f} orbits on end "
                   f"(the longest of the seeds)")
+    for k, t in s["targets"].items():
+        sp = t.get("nees_spread")
+        if sp:
+            lo, hi = t["band_95"]
+            print(f"{k}: the {t['runs']}-run average NEES varies with variance {sp['variance_of_average']:.2f} "
+                  f"({sp['variance_with_runs_shifted']:.2f} with each run shifted in time): a part common to the "
+                  f"runs of sd {sp['common_sd']:.2f}, against the band's half-width {(hi - lo) / 2:.2f}")
     for k, t in s["targets"].items():
         c = t.get("common_to_every_seed")
         if c:

@@ -31,7 +31,7 @@ import sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "python"))
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
 from artms_tools.runfolder import ROE_NAMES as ROE, RunFolderError, principal_z2, read_summary  # noqa: E402
-from campaign import run_epoch_tt_ns  # noqa: E402
+from campaign import nees_spread_entry, run_epoch_tt_ns  # noqa: E402
 
 TAIL_LINES = 20
 
@@ -111,7 +111,7 @@ def target_stats(per_seed, after_orbit, period_s):
             "mean_nees": float(np.nanmean(avg)), "roe": list(ROE), "mean_z2_per_roe": z2,
             "worst_seed_frac_beyond_3sigma": float(np.max(np.nanmean(nees > q3, axis=1))),
             "worst_seed_frac_beyond_5sigma": float(np.max(np.nanmean(nees > q5, axis=1))),
-            "mean_z2_per_principal_direction": by_direction}
+            "mean_z2_per_principal_direction": by_direction, "nees_spread": nees_spread_entry(nees)}
 
 
 def main(argv=None):
@@ -177,6 +177,12 @@ def main(argv=None):
                   + " ".join(f"{x:10.2f}" for x in st["mean_z2_per_roe"])
                   + f"   {100 * st['worst_seed_frac_beyond_3sigma']:.1f} % / "
                     f"{100 * st['worst_seed_frac_beyond_5sigma']:.1f} %")
+            sp = st["nees_spread"]
+            if sp:
+                lo, hi = st["band_95"]
+                print(f"{'':<10} the average NEES's variance {sp['variance_of_average']:.2f} "
+                      f"({sp['variance_with_runs_shifted']:.2f} with each run shifted in time): a common part of sd "
+                      f"{sp['common_sd']:.2f} (band half-width {(hi - lo) / 2:.2f})")
             if st["mean_z2_per_principal_direction"]:
                 print(f"{'':<10} (error/1-sigma)^2 along the principal directions, thinnest first: "
                       + " ".join(f"{x:.2f}" for x in st["mean_z2_per_principal_direction"]))
