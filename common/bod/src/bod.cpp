@@ -107,14 +107,15 @@ void Options::validate() const {
 std::string Result::brief() const {
   char buf[320];
   if (usable()) {
+    // Short: the navigator appends its decision, and event texts are bounded (bus::kEventTextChars).
     std::snprintf(buf, sizeof buf,
-                  "BOD usable: %d bearings, range %.2f km +- %.2f km (1-sigma), a*dlambda %.1f m, a*da %.1f m, "
-                  "post-fit RMS %.1f arcsec (correlation inflation %.1f), %d iterations",
+                  "BOD usable: %d bearings, range %.2f +- %.2f km, a*dlambda %.1f m, a*da %.1f m, RMS %.1f\" "
+                  "(inflation %.1f), %d iterations",
                   measurements, range_m / 1e3, sigma_range_m / 1e3, roe_mean.dlambda * a_observer_m,
                   roe_mean.da * a_observer_m, residual_rms_rad / astro::kArcsecToRad, correlation_inflation, iterations);
     if (model_correction_rms_rad > 0.0) {
       char more[160];
-      std::snprintf(more, sizeof more, "; corrected for the onboard model (%.2f arcsec RMS; range %.2f km before)",
+      std::snprintf(more, sizeof more, "; model-corrected (%.2f\" RMS, range %.2f km before)",
                     model_correction_rms_rad / astro::kArcsecToRad, uncorrected_range_m / 1e3);
       return std::string(buf) + more;
     }

@@ -1419,6 +1419,12 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     char head[96];
     std::snprintf(head, sizeof head, "BOD attempt %zu on IMP track %d at %s: ", bod_attempts_, track,
                   astro::utc_string(t_est, 0).c_str());
+    // The BOD figures and the navigator's decision on them, as two events (event texts are bounded,
+    // bus::kEventTextChars, and the decision must not be the part cut off).
+    const auto say_decision = [&](const std::string& decision) {
+      messages_.push_back(head + r.brief());
+      messages_.push_back(std::string(head) + (decision.rfind("; ", 0) == 0 ? decision.substr(2) : decision));
+    };
     if (!r.usable()) {
       decided(-1, "not usable");
       messages_.push_back(head + r.brief());
@@ -1503,7 +1509,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
         decided(k, "health check 1 passed", d2);
         std::snprintf(buf, sizeof buf, "; health check 1 passed for target %s (squared Mahalanobis distance %.1f <= %.2f)",
                       target_ids_[static_cast<std::size_t>(k)].c_str(), d2, chi2);
-        messages_.push_back(head + r.brief() + buf);
+        say_decision(buf);
         std::snprintf(buf, sizeof buf, "BOD agrees (health check 1 passed, squared Mahalanobis distance %.1f)", d2);
         set_suspect(k, false, buf);
       }
@@ -1540,7 +1546,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
     }
     if (best < 0) {
       decided(-1, "not used: every target has a bound IMP track");
-      messages_.push_back(head + r.brief() + "; not used: every target has a bound IMP track");
+      say_decision("; not used: every target has a bound IMP track");
       continue;
     }
     if (dl_second < 9.0 * dl_best && dl_best > 1.0) {
@@ -1548,7 +1554,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
                     "; not used: two targets without a bound track are as near in dlambda (squared distances %.1f, %.1f)",
                     dl_best, dl_second);
       decided(-1, std::string("not used") + buf);
-      messages_.push_back(head + r.brief() + buf);
+      say_decision(buf);
       continue;
     }
     const double d2_best = bod_distance2(best, b);
@@ -1571,7 +1577,7 @@ void Navigator::run_bod(astro::TimeTT t_est) {
                     suspect_[static_cast<std::size_t>(best)] ? "the jump is implausible" : "its own bearings fit its estimate",
                     d2_best, chi2, jump_m / 1e3, range_est_m / 1e3);
       decided(-1, std::string("not used") + buf);
-      messages_.push_back(head + r.brief() + buf);
+      say_decision(buf);
       continue;
     }
     last_bod_[static_cast<std::size_t>(best)] = est;

@@ -629,11 +629,13 @@ ObserverOutputs Observer::step(const bus::Tick& tick, ObserverInputs in) {
                        " broadcasts received, remote bearings " + std::to_string(navigator_->remote_assigned()) +
                        " fused, " + std::to_string(navigator_->remote_unassigned()) + " not assigned, " +
                        std::to_string(navigator_->remote_late()) + " too late, " +
-                       std::to_string(navigator_->remote_repeated()) + " repeats dropped; " +
-                       std::to_string(navigator_->blended_measurements()) +
-                       " local bearings left out, another target predicted within " +
-                       std::to_string(static_cast<int>(NavigatorOptions{}.blend_separation_px)) + " px; " +
-                       std::to_string(navigator_->refused_measurements()) + " refused by the gate; " +
+                       std::to_string(navigator_->remote_repeated()) + " repeats dropped");
+      // A second line: event texts are bounded (bus::kEventTextChars).
+      events_.info(t.ns_since_j2000,
+                   "SOD, local bearings not fused: " + std::to_string(navigator_->blended_measurements()) +
+                       " left out (another target predicted within " +
+                       std::to_string(static_cast<int>(NavigatorOptions{}.blend_separation_px)) + " px), " +
+                       std::to_string(navigator_->refused_measurements()) + " refused by the gate, " +
                        std::to_string(navigator_->association_measurements()) +
                        " of tracks not bound to a target (association only)");
     } else {
