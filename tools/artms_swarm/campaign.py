@@ -656,22 +656,19 @@ def nees_spread_entry(M, draws=50):
     """M: runs x steps NEES (NaN allowed). Variance of the run-average over the steps, the same with every run
     shifted by its own random circular lag (the mean over `draws`), and the common part's sd (SPREAD_NOTE);
     None with fewer than 2 runs or 4 steps."""
-    import warnings
     import numpy as np
     M = np.asarray(M, dtype=float)
     if M.ndim != 2 or M.shape[0] < 2 or M.shape[1] < 4:
         return None
-    M = M[:, np.all(np.isfinite(M), axis=0)]
+    M = M[:, np.all(np.isfinite(M), axis=0)]  # steps every run has
     R, n = M.shape
     if n < 4:
         return None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        var_avg = float(np.var(M.mean(axis=0), ddof=1))
-        rng = np.random.default_rng(20240508)
-        idx = np.arange(n)
-        shifted = [float(np.var(np.mean([row[(idx + int(k)) % n] for row, k in zip(M, rng.integers(0, n, R))],
-                                        axis=0), ddof=1)) for _ in range(draws)]
+    var_avg = float(np.var(M.mean(axis=0), ddof=1))
+    rng = np.random.default_rng(20240508)
+    rows, cols = np.arange(R)[:, None], np.arange(n)[None, :]
+    shifted = [float(np.var(M[rows, (cols + rng.integers(0, n, R)[:, None]) % n].mean(axis=0), ddof=1))
+               for _ in range(draws)]
     base = float(np.mean(shifted))
     return {"variance_of_average": var_avg, "variance_with_runs_shifted": base,
             "common_sd": float(math.sqrt(max(var_avg - base, 0.0))), "note": SPREAD_NOTE}
