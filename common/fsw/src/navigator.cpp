@@ -8,7 +8,9 @@
 #include "artms/astro/constants.hpp"
 #include "artms/astro/elements.hpp"
 #include "artms/astro/roe.hpp"
+#include "artms/dynamics/ephemeris.hpp"
 #include "artms/dynamics/j2_mean.hpp"
+#include "artms/dynamics/shadow.hpp"
 #include "artms/sod/apriori.hpp"
 
 namespace artms::fsw {
@@ -1824,6 +1826,7 @@ std::vector<Navigator::DirectAssignment> Navigator::assign_untracked(astro::Time
   for (std::size_t k = 0; k < K; ++k) {
     if (!have[k] || !(width[k] < opt_.direct_max_sigma_rad)) continue;
     if (tracked(static_cast<int>(k), t)) continue;
+    if (predicted_eclipsed(f, static_cast<int>(k), image_time(t))) continue;
     int hit = -1, hits = 0;
     for (std::size_t c = 0; c < C; ++c) {
       if (std::find(taken.begin(), taken.end(), static_cast<int>(c)) != taken.end()) continue;
@@ -1842,6 +1845,28 @@ std::vector<Navigator::DirectAssignment> Navigator::assign_untracked(astro::Time
   return used;
 }
 
+bool Navigator::predicted_eclipsed(const sod::SodFilter& f, int k, astro::TimeTT t) const {
+  if (!opt_.skip_eclipsed_targets) return false;
+  Eigen::VectorXd mean;
+  Eigen::MatrixXd P;
+  observer_target_block(f, k, mean, P);
+  const astro::Vec3 r_sun = dynamics::sun_position_eci_m(t);
+  const auto lit = [&](const Eigen::VectorXd& s) {
+    const auto o = astro::QnsElements::from_vector(s.head<6>());
+    const auto r = astro::cartesian_from_qns(astro::qns_from_roe(o, astro::Roe::from_vector(s.tail<6>()))).r_m;
+    return dynamics::sunlit_fraction(r, r_sun, dynamics::ShadowModel::kConical) > 0.0;
+  };
+  if (lit(mean)) return false;
+  // The same sigma points as untracked_regions' (spread sqrt(12) sigma).
+  const Eigen::LLT<Eigen::MatrixXd> llt(P * 12.0);
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::MatrixXd L = llt.matrixL();
+  for (Eigen::Index i = 0; i < 12; ++i) {
+    if (lit(mean + L.col(i)) || lit(mean - L.col(i))) return false;
+  }
+  return true;
+}
+
 bool Navigator::tracked(int k, astro::TimeTT t) const {
   return std::any_of(tracks_.begin(), tracks_.end(), [&](const auto& kv) {
     return kv.second.target == k && astro::seconds_between(kv.second.last, t) < 1800.0;
@@ -1856,6 +1881,10 @@ std::vector<Navigator::PixelRegion> Navigator::untracked_regions(astro::TimeTT t
   const sod::SodFilter& f = *fp;
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
     if (!has_estimate_[static_cast<std::size_t>(k)] || tracked(k, t)) continue;
+    if (predicted_eclipsed(f, k, image_time(t))) {
+      ++eclipsed_skipped_;
+      continue;
+    }
     // Unscented transform of [observer QNS; target ROE] through the pixel of the line of sight.
     Eigen::VectorXd mean;
     Eigen::MatrixXd P;

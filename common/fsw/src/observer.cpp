@@ -482,10 +482,12 @@ void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
                                      std::to_string(n_.direct_refused_unverified) +
                                      " refused unchecked (no frame could check them; region too wide)");
   // A second line: event texts are bounded (bus::kEventTextChars).
-  events_.info(t.ns_since_j2000, "IMP, the sky stacked over the other frames at single detections' directions: " +
+  events_.info(t.ns_since_j2000, "IMP, the sky stacked at single detections' directions: " +
                                      std::to_string(n_.direct_refused_stacked_star) + " refused as faint stars, " +
                                      std::to_string(n_.direct_blended_stacked) +
-                                     " weighted as blends (a faint neighbour within the blend radius)");
+                                     " weighted as blends (a faint neighbour within the blend radius); " +
+                                     std::to_string(navigator_ ? navigator_->eclipsed_searches_skipped() : 0) +
+                                     " aided searches skipped (target predicted in the Earth's shadow)");
 }
 
 bus::NavTelemetry Observer::navigation(astro::TimeTT t) const {

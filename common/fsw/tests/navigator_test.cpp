@@ -11,6 +11,8 @@
 
 #include <random>
 
+#include "artms/dynamics/ephemeris.hpp"
+#include "artms/dynamics/shadow.hpp"
 #include "artms/fsw/navigator.hpp"
 #include "sod_scenario.hpp"
 
@@ -648,6 +650,87 @@ TEST(NavigatorTimeTags, TheAssociationAtTheImageTimeLosesNoBearingOfTheSameFrame
   EXPECT_EQ(nav.late_measurements(), 0u);
   EXPECT_EQ(nav.association_measurements(), static_cast<std::size_t>(n));
   EXPECT_EQ(nav.report(truth.t()).targets[0].local_measurements, static_cast<std::uint32_t>(n));
+}
+
+}  // namespace
+}  // namespace artms::fsw
+
+// No aided search and no single detection for a target the onboard model
+// puts in the Earth's umbra (NavigatorOptions::skip_eclipsed_targets): over
+// one orbit, the regions follow the truth's shadow (a-priori = truth, 1 m),
+// and with the option off the eclipsed target is searched for as before.
+namespace artms::fsw {
+namespace {
+
+TEST(NavigatorEclipse, NoAidedSearchForATargetPredictedInTheEarthsShadow) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(1);
+  for (const bool skip : {true, false}) {
+    Truth truth(kT0, observer_at_start(), a_roe);
+    std::mt19937_64 rng(3);
+    const config::ObserverUplink up = uplink_at_truth(truth, rng);
+    NavigatorOptions opt;
+    opt.skip_eclipsed_targets = skip;
+    Navigator nav(up, j2_forces(), opt);
+    const imp::Samus samus;
+    int lit_steps = 0, deep_shadow_steps = 0, regions_lit = 0, regions_deep_shadow = 0, assigned_deep_shadow = 0;
+    std::vector<double> fraction;
+    std::vector<int> have_region, have_assignment;
+    for (int k = 0; k <= 100; ++k) {  // 100 min: about one orbit
+      const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+      truth.advance_to(t);
+      nav.add_gnss(truth.gnss(0.0, 0.0, false, nullptr));
+      nav.advance(t, t, samus);
+      const Eigen::Vector3d r_target = truth.target_eci(0).r_m;
+      fraction.push_back(dynamics::sunlit_fraction(r_target, dynamics::sun_position_eci_m(t)));
+      // A camera pointed at the target.
+      const Eigen::Vector3d u = (r_target - truth.observer_eci().r_m).normalized();
+      const Eigen::Vector3d ex = u.unitOrthogonal(), ey = u.cross(ex);
+      const auto pixel_of = [&](const Eigen::Vector3d& v) -> std::optional<Eigen::Vector2d> {
+        return Eigen::Vector2d(640.0 + 5660.0 * v.dot(ex) / v.dot(u), 512.0 + 5660.0 * v.dot(ey) / v.dot(u));
+      };
+      have_region.push_back(nav.untracked_regions(t, pixel_of).size() == 1u ? 1 : 0);
+      imp::Samus framed;
+      imp::TrackerInput in;
+      in.frame = 1;
+      in.t = t;
+      in.observer_eci = truth.observer_eci();
+      in.boresight_eci = u;
+      framed.process(in, {});
+      imp::Candidate c;
+      c.u_eci = u;
+      c.sigma_rad = 3.0 * astro::kArcsecToRad;
+      have_assignment.push_back(nav.assign_untracked(t, {c}, {}, truth.observer_eci(), framed).size() == 1u ? 1 : 0);
+    }
+    for (std::size_t i = 1; i + 1 < fraction.size(); ++i) {
+      if (fraction[i] == 1.0) {
+        ++lit_steps;
+        regions_lit += have_region[i];
+      }
+      // Deep in the umbra: the minute before and after too.
+      if (fraction[i - 1] == 0.0 && fraction[i] == 0.0 && fraction[i + 1] == 0.0) {
+        ++deep_shadow_steps;
+        regions_deep_shadow += have_region[i];
+        assigned_deep_shadow += have_assignment[i];
+      }
+    }
+    std::printf("skip %d: lit %d steps (%d regions), deep shadow %d steps (%d regions, %d assignments), %zu skipped\n",
+                skip ? 1 : 0, lit_steps, regions_lit, deep_shadow_steps, regions_deep_shadow, assigned_deep_shadow,
+                nav.eclipsed_searches_skipped());
+    ASSERT_GT(lit_steps, 40);
+    ASSERT_GT(deep_shadow_steps, 15);
+    EXPECT_EQ(regions_lit, lit_steps);
+    if (skip) {
+      EXPECT_EQ(regions_deep_shadow, 0);
+      EXPECT_EQ(assigned_deep_shadow, 0);
+      EXPECT_GE(nav.eclipsed_searches_skipped(), static_cast<std::size_t>(deep_shadow_steps));
+      EXPECT_LE(nav.eclipsed_searches_skipped(), fraction.size() - static_cast<std::size_t>(lit_steps));
+    } else {
+      EXPECT_EQ(regions_deep_shadow, deep_shadow_steps);
+      EXPECT_EQ(assigned_deep_shadow, deep_shadow_steps);
+      EXPECT_EQ(nav.eclipsed_searches_skipped(), 0u);
+    }
+  }
 }
 
 }  // namespace

@@ -106,6 +106,15 @@ struct NavigatorOptions {
   // 2 px more for the error of the predicted pixels (docs/sod.md, "The
   // orbit phase"). With the uplinked fx. 0 disables.
   double blend_separation_px = 8.0;
+  // No SOD-aided search, and no single detection assigned, for a target the
+  // onboard model puts in the Earth's umbra: its estimate and every sigma
+  // point of the validity region's unscented transform in the shadow cone
+  // (the onboard Sun ephemeris and dynamics::sunlit_fraction, the ones SRP
+  // uses). An unlit target is not seen, so whatever the search finds there
+  // is a false alarm: IT seed 36 with the orbit phase drawn took a noise peak
+  // 12.65 px from an eclipsed SV2 and was starved for 16 h after it
+  // (docs/sod.md, "A defect, IT seed 36").
+  bool skip_eclipsed_targets = true;
   // A target that had bearings and has had none for lost_after_steps filter
   // steps, while an unbound IMP track is unambiguously nearest its prediction
   // (mean d2 in [lost_min_d2, lost_max_d2)), is suspect: its covariance is inflated so
@@ -271,6 +280,9 @@ class Navigator {
   // Local bearings left out because another target was predicted within
   // NavigatorOptions::blend_separation_px.
   [[nodiscard]] std::size_t blended_measurements() const { return blended_; }
+  // Per frame and target: aided searches not run because the target was
+  // predicted in the Earth's umbra (NavigatorOptions::skip_eclipsed_targets).
+  [[nodiscard]] std::size_t eclipsed_searches_skipped() const { return eclipsed_skipped_; }
   // Local bearings the gate refused, and those of tracks not bound to a
   // target (they served the association only).
   [[nodiscard]] std::size_t refused_measurements() const { return refused_; }
@@ -378,6 +390,7 @@ class Navigator {
   std::vector<std::uint32_t> local_;
   std::size_t late_ = 0;
   std::size_t blended_ = 0;
+  mutable std::size_t eclipsed_skipped_ = 0;  // counted in untracked_regions (const)
   std::size_t refused_ = 0;
   std::size_t association_ = 0;
   std::size_t remote_broadcasts_ = 0;
@@ -423,6 +436,9 @@ class Navigator {
   // correction, less SOD's estimated offset. IMP's predictions
   // (predictions, assign_untracked, untracked_regions) are made there.
   [[nodiscard]] astro::TimeTT image_time(astro::TimeTT tag) const;
+  // True when target k's estimate in f and every sigma point of its
+  // unscented transform lie in the Earth's umbra at t (image time).
+  [[nodiscard]] bool predicted_eclipsed(const sod::SodFilter& f, int k, astro::TimeTT t) const;
   std::size_t bod_attempts_ = 0, bod_usable_ = 0;
   std::vector<bus::BodAttempt> bod_records_;
   // Per target: its bound track's bearings were refused by the gate and none
