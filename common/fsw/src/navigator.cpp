@@ -1850,6 +1850,11 @@ bool Navigator::predicted_eclipsed(const sod::SodFilter& f, int k, astro::TimeTT
   Eigen::VectorXd mean;
   Eigen::MatrixXd P;
   observer_target_block(f, k, mean, P);
+  return in_umbra(mean, P, t);
+}
+
+bool Navigator::in_umbra(const Eigen::VectorXd& mean, const Eigen::MatrixXd& P, astro::TimeTT t) const {
+  if (!opt_.skip_eclipsed_targets) return false;
   const astro::Vec3 r_sun = dynamics::sun_position_eci_m(t);
   const auto lit = [&](const Eigen::VectorXd& s) {
     const auto o = astro::QnsElements::from_vector(s.head<6>());
@@ -1881,14 +1886,14 @@ std::vector<Navigator::PixelRegion> Navigator::untracked_regions(astro::TimeTT t
   const sod::SodFilter& f = *fp;
   for (int k = 0; k < static_cast<int>(target_ids_.size()); ++k) {
     if (!has_estimate_[static_cast<std::size_t>(k)] || tracked(k, t)) continue;
-    if (predicted_eclipsed(f, k, image_time(t))) {
-      ++eclipsed_skipped_;
-      continue;
-    }
     // Unscented transform of [observer QNS; target ROE] through the pixel of the line of sight.
     Eigen::VectorXd mean;
     Eigen::MatrixXd P;
     observer_target_block(f, k, mean, P);
+    if (in_umbra(mean, P, image_time(t))) {
+      ++eclipsed_skipped_;
+      continue;
+    }
     const Eigen::LLT<Eigen::MatrixXd> llt(P * 12.0);
     if (llt.info() != Eigen::Success) continue;
     const Eigen::MatrixXd L = llt.matrixL();

@@ -439,6 +439,8 @@ class Navigator {
   // True when target k's estimate in f and every sigma point of its
   // unscented transform lie in the Earth's umbra at t (image time).
   [[nodiscard]] bool predicted_eclipsed(const sod::SodFilter& f, int k, astro::TimeTT t) const;
+  // The same from [observer QNS; target ROE] and its covariance (12).
+  [[nodiscard]] bool in_umbra(const Eigen::VectorXd& mean, const Eigen::MatrixXd& P, astro::TimeTT t) const;
   std::size_t bod_attempts_ = 0, bod_usable_ = 0;
   std::vector<bus::BodAttempt> bod_records_;
   // Per target: its bound track's bearings were refused by the gate and none
