@@ -166,7 +166,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"dbscan_frames", u.tuning.imp.dbscan_frames},
           {"aided_detection_snr", u.tuning.imp.aided_detection_snr},
           {"aided_false_alarms", u.tuning.imp.aided_false_alarms},
-          {"aberration_correction", u.tuning.imp.aberration_correction}}},
+          {"aberration_correction", u.tuning.imp.aberration_correction},
+          {"signal_history", u.tuning.imp.signal_history}}},
         {"bod",
          {{"enabled", u.tuning.bod.enabled}, {"period_s", u.tuning.bod.period_s},
           {"samples", u.tuning.bod.samples}, {"max_iterations", u.tuning.bod.max_iterations},
@@ -321,6 +322,7 @@ ObserverUplink read_uplink(const std::string& path) {
       throw std::runtime_error(path + ": tuning.imp.aided_false_alarms must be in [0, 0.1]");
     }
     u.tuning.imp.aberration_correction = t.at("imp").value("aberration_correction", false);  // older: none
+    u.tuning.imp.signal_history = t.at("imp").value("signal_history", false);  // older: each detection's own
     const auto& bod = t.at("bod");
     u.tuning.bod.enabled = bod.at("enabled").get<bool>();
     u.tuning.bod.period_s = bod.at("period_s").get<double>();

@@ -319,7 +319,8 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
   rep.hot_pixels_removed = static_cast<std::uint32_t>(fr.hot_pixels_removed);
   rep.uncatalogued_stars_removed = static_cast<std::uint32_t>(fr.uncatalogued_stars_removed);
   std::vector<bus::ImpMeasurement>& meas = rep.measurements;
-  const auto release_direct = [&](const PendingDirect& p) {
+  const auto release_direct = [&](PendingDirect p) {
+    expected_signal_sigma(target_signal_[p.target], p.c, p.t_ns);
     navigator_->add_direct(astro::TimeTT{p.t_ns}, p.target, p.c.u_eci, p.q_cam_from_eci, p.c.sigma_rad);
     report_measurement(meas, p.frame_seq, p.t_ns, bus::single_detection_track(p.target), p.c);
   };
@@ -426,8 +427,9 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
               {f.frame_seq, f.time_tag_tt_ns, a.target, c, fr.q_cam_from_eci, a.region_sigma_rad, before.has_value()});
         }
       }
-      for (const auto& m : ss.released) {
+      for (auto m : ss.released) {
         const std::int64_t t_ns = m.t.ns_since_j2000;
+        expected_signal_sigma(track_signal_[m.track_id], m.c, t_ns);
         report_measurement(meas, static_cast<std::uint32_t>(m.frame), t_ns, m.track_id, m.c);
         const auto qa = frame_attitude_.find(static_cast<std::uint32_t>(m.frame));
         if (navigator_ && qa != frame_attitude_.end()) {
@@ -441,6 +443,16 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
   }
   n_.measurements_released += meas.size();
   out.imp.push_back(std::move(rep));
+  // Histories of tracks that ended long ago (SAMUS starts new ones all run long).
+  const double t_frame_s = static_cast<double>(f.time_tag_tt_ns) * 1e-9;
+  std::erase_if(track_signal_, [&](const auto& kv) { return t_frame_s - kv.second.last_t_s() > 7200.0; });
+}
+
+void Observer::expected_signal_sigma(imp::SignalHistory& h, imp::Candidate& c, std::int64_t t_ns) {
+  if (!up_.tuning.imp.signal_history || !processor_ || c.aided || c.saturated || !(c.signal_dn > 0.0)) return;
+  const double t_s = static_cast<double>(t_ns) * 1e-9;
+  c.sigma_rad = processor_->sigma_rad_for_signal(c, h.expected(t_s, c.signal_dn, c.signal_variance_dn2));
+  if (!c.blended) h.add(t_s, c.signal_dn, c.signal_variance_dn2);
 }
 
 bool Observer::unverified_direct_usable(const PendingDirect& p) {
@@ -456,14 +468,16 @@ void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
   rep.observer = me_;
   rep.t_tt_ns = t.ns_since_j2000;
   rep.status = bus::FrameStatus::kEnd;
-  for (const auto& p : pending_direct_) {  // no later frame to check them against
+  for (auto p : pending_direct_) {  // no later frame to check them against
     if (!p.checked_before && !unverified_direct_usable(p)) continue;
+    expected_signal_sigma(target_signal_[p.target], p.c, p.t_ns);
     if (navigator_) navigator_->add_direct(astro::TimeTT{p.t_ns}, p.target, p.c.u_eci, p.q_cam_from_eci, p.c.sigma_rad);
     rep.measurements.push_back(imp_measurement(p.frame_seq, p.t_ns, bus::single_detection_track(p.target), p.c));
   }
   pending_direct_.clear();
-  for (const auto& m : samus_->flush()) {
+  for (auto m : samus_->flush()) {
     const std::int64_t t_ns = m.t.ns_since_j2000;
+    expected_signal_sigma(track_signal_[m.track_id], m.c, t_ns);
     const auto qa = frame_attitude_.find(static_cast<std::uint32_t>(m.frame));
     if (navigator_ && qa != frame_attitude_.end()) {
       navigator_->add_bearing(astro::TimeTT{t_ns}, m.track_id, m.c.u_eci, qa->second, m.c.sigma_rad, m.segment);

@@ -4,6 +4,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -241,6 +242,34 @@ double forced_photometry_gain(const Eigen::Matrix2d& cov_px2, double psf_sigma_p
   return det >= 1.0 ? 1.0 / std::sqrt(det) : 1.0;  // a covariance that is not positive: no loss claimed
 }
 
+namespace {
+
+// Mean, sample variance (0 below 2 values) and mean noise variance of the
+// values kept in (t_s - window_s, t_s): the current time excluded.
+struct WindowMoments {
+  int n = 0;
+  double mean = 0.0, variance = 0.0, noise_variance = 0.0;
+};
+WindowMoments window_moments(const std::deque<TimedValue>& seen, double t_s, double window_s) {
+  double sum = 0.0, sum2 = 0.0, noise = 0.0;
+  WindowMoments m;
+  for (const auto& s : seen) {
+    if (s.t_s < t_s && t_s - s.t_s < window_s) {
+      sum += s.value;
+      sum2 += s.value * s.value;
+      noise += s.noise_variance;
+      ++m.n;
+    }
+  }
+  if (m.n == 0) return m;
+  m.mean = sum / m.n;
+  m.variance = m.n > 1 ? std::max(0.0, (sum2 - m.n * m.mean * m.mean) / (m.n - 1)) : 0.0;
+  m.noise_variance = noise / m.n;
+  return m;
+}
+
+}  // namespace
+
 void ForcedPhotometry::add(double t_s, double nu, double gain) {
   if (!(gain >= kMinGain) || !std::isfinite(nu)) return;
   const double g = std::min(gain, 1.0);
@@ -249,22 +278,13 @@ void ForcedPhotometry::add(double t_s, double nu, double gain) {
 }
 
 std::optional<SnrPrior> ForcedPhotometry::expected_before(double t_s, double window_s, int min_frames) const {
-  double sum = 0.0, sum2 = 0.0, noise = 0.0;
-  int n = 0;
-  for (const auto& s : seen_) {
-    if (s.t_s < t_s && t_s - s.t_s < window_s) {
-      sum += s.nu_corrected;
-      sum2 += s.nu_corrected * s.nu_corrected;
-      noise += s.noise_variance;
-      ++n;
-    }
-  }
-  if (n < min_frames || n == 0) return std::nullopt;
+  const WindowMoments m = window_moments(seen_, t_s, window_s);
+  if (m.n < min_frames || m.n == 0) return std::nullopt;
   SnrPrior p;
-  p.frames = n;
-  p.mean = sum / n;
-  p.variance = n > 1 ? std::max(0.0, (sum2 - n * p.mean * p.mean) / (n - 1)) : 0.0;
-  p.noise_variance = noise / n;
+  p.frames = m.n;
+  p.mean = m.mean;
+  p.variance = m.variance;
+  p.noise_variance = m.noise_variance;
   return p;
 }
 
@@ -273,6 +293,25 @@ double snr_for_sigma(double nu_detection, const SnrPrior& prior) {
                           ? std::max(prior.variance - prior.noise_variance, 0.0) + prior.variance / prior.frames
                           : 0.0;
   return std::max(1.0, (tau2 * nu_detection + prior.mean) / (tau2 + 1.0));
+}
+
+void SignalHistory::add(double t_s, double signal_dn, double variance_dn2) {
+  if (!std::isfinite(t_s) || !std::isfinite(signal_dn) || !(signal_dn > 0.0) || !(variance_dn2 > 0.0)) return;
+  seen_.push_back({t_s, signal_dn, variance_dn2});
+  while (seen_.size() > kMaxKept) seen_.pop_front();
+}
+
+double SignalHistory::last_t_s() const {
+  return seen_.empty() ? -std::numeric_limits<double>::infinity() : seen_.back().t_s;
+}
+
+double SignalHistory::expected(double t_s, double signal_dn, double variance_dn2, double window_s,
+                               int min_frames) const {
+  if (!(variance_dn2 > 0.0) || !std::isfinite(signal_dn)) return signal_dn;
+  const WindowMoments m = window_moments(seen_, t_s, window_s);
+  if (m.n < std::max(min_frames, 2)) return signal_dn;
+  const double tau2 = std::max(m.variance - m.noise_variance, 0.0) + m.variance / m.n;
+  return (tau2 * signal_dn + variance_dn2 * m.mean) / (tau2 + variance_dn2);
 }
 
 }  // namespace artms::imp

@@ -513,7 +513,29 @@ double psf_chi2_z(const Frame& f, const DetectionOptions& o, double noise_dn, in
   return psf_fit_chi2_z(pts, noise_dn, o.gain_e_per_dn, o.psf_model_error);
 }
 
+int centroid_window_half_px(const DetectionOptions& o) {
+  return o.window_half_px > 0 ? o.window_half_px : static_cast<int>(std::ceil(3.0 * o.psf_sigma_px));
+}
+
 }  // namespace
+
+double centroid_sigma_px(const DetectionOptions& o, double signal_dn, double noise_dn, double psf_width_px,
+                         double weight_width_px, bool saturated) {
+  const double n_e = signal_dn * o.gain_e_per_dn;
+  const double b_e2 = std::pow(noise_dn * o.gain_e_per_dn, 2);
+  const double var_px2 = o.centroid_method == CentroidMethod::kGaussianFit
+                             ? cramer_rao_variance_px2(psf_width_px, n_e, b_e2)
+                             : iwcog_variance_px2(weight_width_px, psf_width_px, n_e, b_e2);
+  double sigma = n_e > 0.0 ? std::sqrt(var_px2 + o.centroid_sigma_floor_px * o.centroid_sigma_floor_px)
+                           : static_cast<double>(centroid_window_half_px(o));
+  if (saturated) sigma = std::max(sigma, o.saturated_sigma_px);
+  return sigma;
+}
+
+double window_signal_variance_dn2(const DetectionOptions& o, double signal_dn, double noise_dn) {
+  const double side = 2.0 * centroid_window_half_px(o) + 1.0;
+  return side * side * noise_dn * noise_dn + std::max(signal_dn, 0.0) / o.gain_e_per_dn;
+}
 
 double pixel_psf_fraction(int x, int y, double xc, double yc, double psf_sigma_px) {
   const double k = 1.0 / (std::numbers::sqrt2 * psf_sigma_px);
@@ -610,8 +632,7 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
 
   // 8-connected components (depth-first flood fill) from each seed, in scan
   // order.
-  const int half =
-      o.window_half_px > 0 ? o.window_half_px : static_cast<int>(std::ceil(3.0 * o.psf_sigma_px));
+  const int half = centroid_window_half_px(o);
   std::vector<std::size_t> stack, comp;
   std::vector<std::array<double, 3>> maxima;  // x, y, signal
   int n_components = 0;
@@ -806,14 +827,11 @@ DetectionResult detect(std::span<const std::uint16_t> pixels, int width, int hei
         const double v = 0.5 * m2 / flux - 1.0 / 12.0;
         c.moment_sigma_px = v > 0.0 ? std::sqrt(v) : 0.0;
       }
-      const double n_e = std::max(flux, st.peak) * o.gain_e_per_dn;
-      const double b_e2 = std::pow(noise_c * o.gain_e_per_dn, 2);
-      const double var_px2 = o.centroid_method == CentroidMethod::kGaussianFit
-                                 ? cramer_rao_variance_px2(s_psf, n_e, b_e2)
-                                 : iwcog_variance_px2(o.psf_sigma_px, s_psf, n_e, b_e2);
-      c.sigma_px = n_e > 0.0 ? std::sqrt(var_px2 + o.centroid_sigma_floor_px * o.centroid_sigma_floor_px)
-                             : static_cast<double>(half);
-      if (sat) c.sigma_px = std::max(c.sigma_px, o.saturated_sigma_px);
+      c.signal_dn = std::max(flux, st.peak);
+      c.noise_dn = noise_c;
+      c.psf_width_px = s_psf;
+      c.weight_width_px = o.psf_sigma_px;
+      c.sigma_px = centroid_sigma_px(o, c.signal_dn, noise_c, s_psf, o.psf_sigma_px, sat);
       res.centroids.push_back(c);
     }
   }

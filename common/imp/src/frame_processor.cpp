@@ -301,6 +301,13 @@ FrameSummary FrameProcessor::process(std::span<const std::uint16_t> pixels, astr
       }
     }
     cand.sigma_rad = std::hypot(blend_sigma_px(c.sigma_px, cand.blended, opt_) / K_.fx, out.attitude_sigma_rad);
+    cand.signal_dn = c.signal_dn;
+    cand.signal_variance_dn2 = window_signal_variance_dn2(opt_.detection, c.signal_dn, c.noise_dn);
+    cand.noise_dn = c.noise_dn;
+    cand.psf_width_px = c.psf_width_px;
+    cand.weight_width_px = c.weight_width_px;
+    cand.saturated = c.saturated;
+    cand.attitude_sigma_rad = out.attitude_sigma_rad;
     now.px.emplace_back(c.x_px, c.y_px);
     now.u_eci.push_back(cand.u_eci);
     // Uncatalogued star: same inertial direction as an object of an earlier frame.
@@ -453,6 +460,12 @@ std::optional<bool> FrameProcessor::source_in(const Last& frame, std::span<const
   return a.found || a.peaks > 1;
 }
 
+double FrameProcessor::sigma_rad_for_signal(const Candidate& c, double signal_dn) const {
+  const double sigma_px =
+      centroid_sigma_px(opt_.detection, signal_dn, c.noise_dn, c.psf_width_px, c.weight_width_px, c.saturated);
+  return std::hypot(blend_sigma_px(sigma_px, c.blended, opt_) / K_.fx, c.attitude_sigma_rad);
+}
+
 std::optional<double> FrameProcessor::forced_snr(std::span<const std::uint16_t> pixels, const Eigen::Vector2d& px,
                                                  const AidedDetectionOptions& options) const {
   if (!(last_.noise_dn > 0.0)) return std::nullopt;
@@ -495,6 +508,8 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   cand.on_catalog_star = within(last_.catalog_px);
   cand.blended = a.psf_chi2_z > opt_.blend_chi2_z || within(last_.detections_px) || cand.on_catalog_star;
   cand.sigma_rad = std::hypot(blend_sigma_px(sigma_px, cand.blended, opt_) / K_.fx, last_.attitude_sigma_rad);
+  cand.attitude_sigma_rad = last_.attitude_sigma_rad;
+  cand.aided = true;
   const auto& P = opt_.persistence;
   while (!aided_seen_.empty() && last_.t_s - aided_seen_.front().first > P.history_max_age_s) aided_seen_.pop_front();
   const double cos_star = std::cos(P.star_tolerance_rad);

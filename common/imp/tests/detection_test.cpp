@@ -1,6 +1,7 @@
 // Detection and centroiding on frames from the truth-side image former: the
 // sources (catalog stars) and the hot pixels are known exactly, so recall,
 // false detections and centroid errors are measured against truth.
+#include "artms/imp/aided_detection.hpp"
 #include "artms/imp/detection.hpp"
 
 #include <gtest/gtest.h>
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <utility>
@@ -527,6 +529,79 @@ TEST(Detection, CentroidSigmaMatchesTheScatterFromFaintToBright) {
     EXPECT_GT(z, 0.9);
     EXPECT_LT(z, 1.1);
   }
+}
+
+
+// The centroid 1-sigma of a faint source weighed as a filter weighs it: by
+// 1 / sigma^2, so the information-weighted mean of (error / sigma)^2,
+// sum(e^2 / sigma^4) / sum(1 / sigma^2), is what decides the filter's
+// consistency. With each detection's own window signal (noise ~30 % at
+// 600 e-) the weights are noisy and that mean exceeds 1; with the signal
+// expected from the source's earlier detections (SignalHistory, one frame a
+// minute as a target is imaged) it is 1 within its standard error. And
+// centroid_sigma_px() gives back each detection's own sigma_px.
+TEST(SignalHistory, FaintSpotsWeighedByTheirSourcesSignalAreConsistent) {
+  const imaging::ImageFormer former(small_nst_camera());
+  const auto& cam = former.camera();
+  DetectionOptions o;
+  o.background_cell_px = 48;
+  for (const double electrons : {500.0, 600.0}) {
+    SignalHistory history;
+    double w_own = 0.0, wz2_own = 0.0, w_hist = 0.0, wz2_hist = 0.0;
+    int n = 0;
+    for (std::uint64_t seed = 1; seed <= 1500; ++seed) {
+      const double x0 = 48.0 + 0.37 * static_cast<double>(seed % 3), y0 = 47.6 + 0.29 * static_cast<double>(seed % 4);
+      const auto px = former.render(std::vector<imaging::PointSource>{{x0, y0, electrons}}, seed, imaging::NoiseOptions{});
+      const auto r = detect(px, cam.width_px, cam.height_px, o);
+      const auto [i, d] = nearest(r, x0, y0);
+      if (i < 0 || d > 2.0) continue;
+      const auto& c = r.centroids[static_cast<std::size_t>(i)];
+      ASSERT_EQ(centroid_sigma_px(o, c.signal_dn, c.noise_dn, c.psf_width_px, c.weight_width_px, c.saturated),
+                c.sigma_px);
+      const double t_s = 60.0 * static_cast<double>(seed);
+      const double var = window_signal_variance_dn2(o, c.signal_dn, c.noise_dn);
+      const double s_hist = centroid_sigma_px(o, history.expected(t_s, c.signal_dn, var), c.noise_dn,
+                                              c.psf_width_px, c.weight_width_px, c.saturated);
+      history.add(t_s, c.signal_dn, var);
+      const double e2 = std::pow(c.x_px - x0, 2) + std::pow(c.y_px - y0, 2);
+      w_own += 2.0 / std::pow(c.sigma_px, 2);
+      wz2_own += e2 / std::pow(c.sigma_px, 4);
+      w_hist += 2.0 / std::pow(s_hist, 2);
+      wz2_hist += e2 / std::pow(s_hist, 4);
+      ++n;
+    }
+    ASSERT_GT(n, 800);
+    const double own = wz2_own / w_own, hist = wz2_hist / w_hist;
+    std::printf("[ figures ] %.0f e-, %d detections: information-weighted (error / sigma)^2 %.3f with each detection's "
+                "own signal, %.3f with the signal expected from the earlier ones\n",
+                electrons, n, own, hist);
+    EXPECT_GT(own, 1.08);
+    EXPECT_GT(hist, 0.9);
+    EXPECT_LT(hist, 1.06);
+  }
+}
+
+// SignalHistory::expected: the detection's own signal until min_frames earlier
+// ones are within the window; a steady source's mean; a flickering source's
+// own signal mostly; never a later detection.
+TEST(SignalHistory, ShrinksTowardsTheSourcesEarlierSignals) {
+  SignalHistory h;
+  EXPECT_EQ(h.expected(100.0, 300.0, 900.0), 300.0);
+  for (int k = 0; k < 3; ++k) h.add(10.0 * k, 200.0, 900.0);
+  EXPECT_EQ(h.expected(100.0, 300.0, 900.0), 300.0);  // 3 < 4 frames
+  h.add(30.0, 200.0, 900.0);
+  EXPECT_DOUBLE_EQ(h.expected(100.0, 300.0, 900.0), 200.0);  // steady: S^2 = 0, the mean
+  EXPECT_EQ(h.expected(30.0, 300.0, 900.0), 300.0);          // only 3 before t = 30 s
+  EXPECT_EQ(h.expected(5000.0, 300.0, 900.0), 300.0);        // all beyond the window
+  SignalHistory flicker;
+  for (int k = 0; k < 10; ++k) flicker.add(10.0 * k, k % 2 == 0 ? 100.0 : 400.0, 900.0);
+  const double s = flicker.expected(200.0, 400.0, 900.0);
+  EXPECT_GT(s, 390.0);  // spread 158 DN against a noise of 30 DN: the detection's own
+  EXPECT_LT(s, 400.0);
+  h.add(40.0, std::numeric_limits<double>::quiet_NaN(), 900.0);  // not kept
+  h.add(40.0, -5.0, 900.0);
+  EXPECT_DOUBLE_EQ(h.expected(100.0, 300.0, 900.0), 200.0);
+  EXPECT_EQ(h.last_t_s(), 30.0);
 }
 
 }  // namespace

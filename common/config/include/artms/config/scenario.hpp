@@ -172,6 +172,11 @@ struct ImpTuning {
   // the onboard Sun ephemeris plus its own orbit's) before solving the
   // attitude (imp::FrameProcessor::process); false: the catalog as it is.
   bool aberration_correction = true;
+  // A detection's centroid 1-sigma from its source's expected signal (its
+  // own shrunk towards its earlier detections', imp::SignalHistory: per SAMUS
+  // track, and per target for single detections) instead of its own noisy
+  // one; false: its own.
+  bool signal_history = true;
 };
 struct BodTuning {
   bool enabled = true;               // BOD runs in modes 1-3 (paper: health check 1, re-initialisation)

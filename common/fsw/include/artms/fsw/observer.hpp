@@ -143,6 +143,10 @@ class Observer {
   // A pending single detection no frame before nor the next could check:
   // usable only from a narrow validity region; counts the refusal otherwise.
   bool unverified_direct_usable(const PendingDirect& p);
+  // A detection's 1-sigma from its source's expected signal (h: its track's
+  // or its target's history; tuning.imp.signal_history), then its signal
+  // added to h. Aided and saturated detections keep theirs.
+  void expected_signal_sigma(imp::SignalHistory& h, imp::Candidate& c, std::int64_t t_ns);
   [[nodiscard]] bus::NavTelemetry navigation(astro::TimeTT t) const;
   void broadcast(astro::TimeTT t, const bus::NavTelemetry& nav, ObserverOutputs& out);
   // A relayed broadcast checked field by field; "" when valid.
@@ -166,6 +170,8 @@ class Observer {
   imp::AidedDetectionOptions aided_options_;
   std::vector<std::uint16_t> decoded_;  // frame pixels in DN (camera calibration dn_shift_bits undone)
   std::map<int, imp::ForcedPhotometry> forced_;  // per target index: forced photometry at its prediction
+  std::map<int, imp::SignalHistory> track_signal_;   // per SAMUS track id: its released detections' signals
+  std::map<int, imp::SignalHistory> target_signal_;  // per target index: its single detections' signals
   std::optional<Navigator> navigator_;
   int n_scan_;
 

@@ -234,7 +234,28 @@ struct Centroid {
   // measurable. Noisy for faint sources: FrameProcessor learns the camera's
   // PSF from bright identified stars only.
   double moment_sigma_px = 0.0;
+  // What sigma_px was computed from (centroid_sigma_px), so that it can be
+  // computed again for another signal: max(flux_dn, peak_dn), the local
+  // noise at the centroid (DN), and the PSF and weight widths (px).
+  double signal_dn = 0.0;
+  double noise_dn = 0.0;
+  double psf_width_px = 0.0;
+  double weight_width_px = 0.0;
 };
+
+// Centroid 1-sigma per axis (px) of item 5 for a source of signal_dn
+// (max(flux_dn, peak_dn)) on a local noise of noise_dn, sampled-PSF width
+// psf_width_px and IWCoG weight width weight_width_px (the Gaussian fit uses
+// the Cramer-Rao bound with psf_width_px); centroid_sigma_floor_px added in
+// quadrature, saturated_sigma_px the least when saturated; the centroid
+// window's half-width when signal_dn is not positive. detect() calls it with
+// the detection's own signal.
+[[nodiscard]] double centroid_sigma_px(const DetectionOptions& o, double signal_dn, double noise_dn,
+                                       double psf_width_px, double weight_width_px, bool saturated);
+// Variance (DN^2) of a centroid window's summed signal (flux_dn): the
+// window's (2 half + 1)^2 pixels of noise noise_dn and the source's photon
+// noise. Used to weigh one detection's signal against its source's earlier ones.
+[[nodiscard]] double window_signal_variance_dn2(const DetectionOptions& o, double signal_dn, double noise_dn);
 
 struct DetectionResult {
   std::vector<Centroid> centroids;  // sorted by flux, brightest first

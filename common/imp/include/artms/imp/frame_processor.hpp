@@ -37,6 +37,19 @@ struct Candidate {
   double psf_chi2_z = 0.0;  // detect()'s blend statistic (Centroid::psf_chi2_z)
   bool blended = false;     // blend_sigma_px was added (a neighbour, or the PSF fit)
   bool on_catalog_star = false;  // a catalogued star within blend_radius_px (detected or not)
+  // What sigma_rad was computed from, so that sigma_rad_for_signal() can
+  // compute it again for another signal (the source's expected one,
+  // SignalHistory): the centroid's Centroid::signal_dn, noise_dn,
+  // psf_width_px, weight_width_px and saturation, the window signal's
+  // variance (window_signal_variance_dn2) and the frame's attitude 1-sigma.
+  double signal_dn = 0.0;
+  double signal_variance_dn2 = 0.0;
+  double noise_dn = 0.0;
+  double psf_width_px = 0.0;
+  double weight_width_px = 0.0;
+  bool saturated = false;
+  double attitude_sigma_rad = 0.0;
+  bool aided = false;  // from aided_candidate(): its 1-sigma comes from the forced photometry instead
 };
 
 struct PersistenceOptions {
@@ -170,6 +183,10 @@ class FrameProcessor {
   // move a target's centroid). Empty (the default): the identification catalog.
   void set_blend_stars(std::vector<Eigen::Vector3d> u_eci) { blend_stars_ = std::move(u_eci); }
   [[nodiscard]] const FrameProcessorOptions& options() const { return opt_; }
+  // A candidate's sigma_rad computed again for signal_dn instead of its own
+  // Candidate::signal_dn (the same noise, PSF, blend and attitude terms);
+  // equal to sigma_rad for its own signal.
+  [[nodiscard]] double sigma_rad_for_signal(const Candidate& c, double signal_dn) const;
   // SOD-aided detection (aided_detection.hpp) in the frame process() took
   // last, which must have had a usable attitude: a candidate near the
   // predicted pixel, or nullopt with the reason in *why. A source at the
