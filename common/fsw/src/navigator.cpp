@@ -180,6 +180,11 @@ bod::Options bod_options(const config::BodTuning& t) {
   return o;
 }
 
+double association_limit_d2(const NavigatorOptions& options, int n) {
+  if (n < 1) return 0.0;
+  return std::min(options.association_max_d2, sod::chi2_quantile(2 * n, options.association_confidence) / n);
+}
+
 double remote_bearing_max_age_s(const config::ObserverUplink& up) {
   return (imp::SamusOptions{}.n_scan + up.tuning.imp.dbscan_frames) * up.swarm_max_cadence_s + up.isl_period_s +
          up.isl_latency_s + 2.0 * up.step_s;
@@ -721,7 +726,7 @@ void Navigator::process(const Event& queued, const imp::Samus& samus) {
           as.n = 0;
           return;
         }
-        if (best < opt_.association_max_d2 && second > opt_.association_ambiguity * best && !taken) {
+        if (best < association_limit_d2(opt_, as.n) && second > opt_.association_ambiguity * best && !taken) {
           as.target = static_cast<int>(order[0]);
           as.segment = e.segment;
           char buf[200];

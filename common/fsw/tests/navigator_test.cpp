@@ -365,6 +365,70 @@ TEST(NavigatorTracks, ATrackJoinedAcrossAGapOnTheSameTargetKeepsItsBearings) {
   EXPECT_EQ(r.report.targets[1].local_measurements, 0u);
 }
 
+// The binding test is chi-square: a track's n bearings bind it to a target
+// when their mean squared Mahalanobis distance is below
+// chi2_quantile(2 n, 0.999) / n (7.56 for 3 bearings). Track 5's bearings of
+// SV2 (noise-free, a-priori = truth) are displaced by a fixed angle, scaled
+// from a first run so that their mean d2 is 8.29 over 3 bearings, the swapped
+// track of IT seed 17 (docs/sod.md, stop 58): the old fixed limit of 16
+// bound it, the chi-square test does not, at any n up to 10.
+struct BindRun {
+  std::vector<std::string> messages;
+  [[nodiscard]] double bound_d2() const {  // the mean d2 of "bound to target SV2", else -1
+    for (const auto& m : messages) {
+      const auto p = m.find("IMP track 5 bound to target SV2 (mean d2 ");
+      if (p != std::string::npos) return std::stod(m.substr(p + 41));
+    }
+    return -1.0;
+  }
+};
+
+BindRun run_displaced_track(double offset_rad, const NavigatorOptions& options) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  Truth truth(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng(3);
+  const config::ObserverUplink up = uplink_at_truth(truth, rng);
+  Navigator nav(up, j2_forces(), options);
+  imp::Samus samus;
+  imp::TrackerInput in;
+  in.observer_eci = truth.observer_eci();
+  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
+  samus.process(in, {});  // sets SAMUS's tracking plane
+  const double s = 5 * astro::kArcsecToRad;
+  BindRun r;
+  for (int k = 0; k <= 10; ++k) {
+    const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+    truth.advance_to(t);
+    nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
+    if (k > 0) {
+      const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
+      const Eigen::Vector3d n = u.cross(truth.observer_eci().v_mps).normalized();
+      nav.add_bearing(t, 5, (u + offset_rad * n).normalized(), Eigen::Quaterniond::Identity(), s);
+    }
+    nav.advance(t, t, samus);
+    for (auto& m : nav.take_messages()) r.messages.push_back(std::move(m));
+  }
+  nav.finish(samus);
+  return r;
+}
+
+TEST(NavigatorTracks, ATrackAtMeanD2OfEightOverThreeBearingsIsNotBound) {
+  EXPECT_NEAR(association_limit_d2(NavigatorOptions{}, 3), 7.56, 0.01);
+  EXPECT_NEAR(association_limit_d2(NavigatorOptions{}, 6), 5.51, 0.01);
+  const double offset0 = 60 * astro::kArcsecToRad;
+  const double d2_0 = run_displaced_track(offset0, NavigatorOptions{}).bound_d2();
+  ASSERT_GT(d2_0, 0.5);
+  ASSERT_LT(d2_0, 5.0);
+  const double offset = offset0 * std::sqrt(8.29 / d2_0);
+  NavigatorOptions fixed16;
+  fixed16.association_confidence = 1.0 - 1e-12;  // at 3 bearings the limit is association_max_d2 (16)
+  const double d2_old = run_displaced_track(offset, fixed16).bound_d2();
+  EXPECT_NEAR(d2_old, 8.29, 0.3);
+  const BindRun now = run_displaced_track(offset, NavigatorOptions{});
+  EXPECT_LT(now.bound_d2(), 0.0);
+}
+
 // BOD in the navigator (issue 16): one target behind the observer on a PSE
 // relative orbit, its IMP track's bearings (3 arcsec) fed every minute with
 // the attitude of an anti-velocity camera.
@@ -474,37 +538,77 @@ TEST(NavigatorBod, HealthCheck1ReinitialisesATargetSodIsSureOfAndWrongAbout) {
   EXPECT_LT(std::abs(err[1]), 3.0 * sigma) << err.transpose() << " sigma " << sigma;
 }
 
-TEST(NavigatorBod, AManoeuvreFlaggedByCheck5IsReinitialisedFromTheFirstBatchAfterIt) {
-  // SV2 burns 5 cm/s along-track at 4 h, unknown to SV4: health check 5 flags
-  // it, and with tuning.bod.reinit_after_check5 the first BOD batch made
-  // only of bearings after the flag re-initialises it whether or not check 1
-  // would have failed (issue 16).
-  Truth truth = sv2_truth();
-  config::ObserverUplink up = sv2_uplink(truth);
-  up.tuning.bod.reinit_after_check5 = true;
-  const BodRun r = bod_run(up, truth, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
-  ASSERT_TRUE(said(r, "SOD target SV2 suspect (health 1): its bearings do not fit its covariance (health check 5"));
-  ASSERT_TRUE(said(r, "SOD target SV2 re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre"));
-  const auto reinit = std::find_if(r.attempts.begin(), r.attempts.end(), [](const bus::BodAttempt& a) {
-    return a.action.find("after a manoeuvre") != std::string::npos;
-  });
-  ASSERT_NE(reinit, r.attempts.end());
-  // Its batch began after the burn: 4 h plus one 90-min BOD period at the least.
-  EXPECT_GE(reinit->t_est_tt_ns, kT0.plus_seconds(240 * 60 + 5400).ns_since_j2000);
+// The run's one target ends with every ROE within 3 sigma of the truth.
+void expect_every_roe_within_3_sigma(const BodRun& r, const Truth& truth) {
   ASSERT_EQ(r.report.targets.size(), 1u);
   const astro::Vec6 err = r.report.targets[0].roe * truth.observer().a_m - r.truth_a_roe;
   for (int i = 0; i < 6; ++i) {
     const double sigma = std::sqrt(r.report.targets[0].P_roe(i, i)) * truth.observer().a_m;
     EXPECT_LT(std::abs(err[i]), 3.0 * sigma) << "ROE " << i << ": " << err.transpose();
   }
+}
+
+// SV2 burns dv_mps along-track at 4 h, unknown to SV4 (9 h run); health
+// check 5 flags it.
+BodRun along_track_burn_run(Truth& truth, double dv_mps, bool reinit_after_check5) {
+  config::ObserverUplink up = sv2_uplink(truth);
+  up.tuning.bod.reinit_after_check5 = reinit_after_check5;
+  BodRun r = bod_run(up, truth, 540, 240, astro::Vec3(0.0, dv_mps, 0.0));
+  EXPECT_TRUE(said(r, "SOD target SV2 suspect (health 1): its bearings do not fit its covariance (health check 5"));
+  return r;
+}
+
+TEST(NavigatorBod, AManoeuvreFlaggedByCheck5IsReinitialisedFromTheFirstBatchAfterIt) {
+  // SV2 burns 4 cm/s along-track at 4 h, unknown to SV4: health check 5 flags
+  // it while its track stays bound, and with tuning.bod.reinit_after_check5
+  // the first BOD batch made only of bearings after the flag re-initialises
+  // it although check 1 passes (SOD's inflated estimate has followed the
+  // burn part of the way; issue 16).
+  Truth truth = sv2_truth();
+  const BodRun r = along_track_burn_run(truth, 0.04, true);
+  EXPECT_FALSE(said(r, "refused by the gate"));
+  ASSERT_TRUE(said(r, "SOD target SV2 re-initialised from BOD: its first batch after health check 5 flagged a manoeuvre"));
+  const auto reinit = std::find_if(r.attempts.begin(), r.attempts.end(), [](const bus::BodAttempt& a) {
+    return a.action.find("after a manoeuvre") != std::string::npos;
+  });
+  ASSERT_NE(reinit, r.attempts.end());
+  EXPECT_LE(reinit->mahalanobis2, 50.0);  // check 1 alone would have kept SOD
+  // Its batch began after the burn: 4 h plus one 90-min BOD period at the least.
+  EXPECT_GE(reinit->t_est_tt_ns, kT0.plus_seconds(240 * 60 + 5400).ns_since_j2000);
+  expect_every_roe_within_3_sigma(r, truth);
   EXPECT_TRUE(said(r, "confirms it (squared Mahalanobis distance"));
   // Off: check 5's inflation alone; BOD only confirms.
   Truth truth_off = sv2_truth();
-  config::ObserverUplink up_off = sv2_uplink(truth_off);
-  up_off.tuning.bod.reinit_after_check5 = false;
-  const BodRun off = bod_run(up_off, truth_off, 540, 240, astro::Vec3(0.0, 0.05, 0.0));
-  EXPECT_TRUE(said(off, "(health check 5"));
+  const BodRun off = along_track_burn_run(truth_off, 0.04, false);
   EXPECT_FALSE(said(off, "first batch after health check 5"));
+}
+
+TEST(NavigatorBod, AManoeuvreThatUnbindsTheTrackIsReinitialisedByCheck1) {
+  // 5 cm/s: the gate refuses the track's bearings after check 5's inflation
+  // and unbinds it; its bearings do not pass the chi-square binding test
+  // against the inflated estimate, so SV2 is not pulled by them, and the
+  // first usable BOD batch on the unbound track re-initialises it by
+  // check 1.
+  Truth truth = sv2_truth();
+  const BodRun r = along_track_burn_run(truth, 0.05, true);
+  ASSERT_TRUE(said(r, "IMP track 4 unbound from target SV2: 3 successive bearings refused by the gate"));
+  ASSERT_TRUE(said(r, "SOD target SV2 unhealthy (health check 1: squared Mahalanobis distance"));
+  const auto unbound = std::find_if(r.messages.begin(), r.messages.end(), [](const std::string& m) {
+    return m.find("refused by the gate") != std::string::npos;
+  });
+  const auto reinit = std::find_if(r.messages.begin(), r.messages.end(), [](const std::string& m) {
+    return m.find("(health check 1: squared Mahalanobis distance") != std::string::npos;
+  });
+  ASSERT_LT(unbound, reinit);
+  EXPECT_TRUE(std::none_of(unbound, reinit, [](const std::string& m) {
+    return m.find("bound to target SV2 (mean d2") != std::string::npos;
+  }));
+  const auto attempt = std::find_if(r.attempts.begin(), r.attempts.end(), [](const bus::BodAttempt& a) {
+    return a.action.find("health check 1 failed") != std::string::npos;
+  });
+  ASSERT_NE(attempt, r.attempts.end());
+  EXPECT_GE(attempt->t_est_tt_ns, kT0.plus_seconds(240 * 60 + 5400).ns_since_j2000);
+  expect_every_roe_within_3_sigma(r, truth);
 }
 
 TEST(NavigatorBod, BodRefutesAFalseAlarmOfCheck5AndSodIsKept) {

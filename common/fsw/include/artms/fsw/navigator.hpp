@@ -15,7 +15,8 @@
 // Tracks and targets: a SAMUS track is bound to the SOD target whose
 // unscented prediction (samus.hpp) fits its measurements best, once
 // association_min_measurements of them give a mean squared Mahalanobis
-// distance below association_max_d2 and the second best target is at least
+// distance below association_limit_d2(n) (the chi-square test of its n
+// bearings, 2 n degrees of freedom) and the second best target is at least
 // association_ambiguity times worse; until then its bearings only serve the
 // association.
 //
@@ -80,6 +81,19 @@ struct NavigatorOptions {
   // the step after the emulator relayed it).
   double remote_hold_s = -1.0;
   int association_min_measurements = 3;
+  // A track is bound to a target when the mean squared Mahalanobis distance
+  // of its n bearings (2 n degrees of freedom) to the target's prediction is
+  // below chi2_quantile(2 n, association_confidence) / n, a test a right
+  // binding fails with probability 1 - association_confidence (7.56 for
+  // n = 3 at 0.999, 5.51 for n = 6; sod::chi2_quantile), and below
+  // association_max_d2. A fixed
+  // limit of 16 bound IT seed 17's SV2 (orbit phase +138.2 deg) to a track
+  // that had swapped to SV3, at a mean d2 of 8.29 over 3 bearings (a chance
+  // of 4e-4 for a right binding): SV3's bearings pulled SV2's estimate
+  // beyond 5 sigma while it was reported healthy (docs/sod.md, stop 58).
+  double association_confidence = 0.999;
+  // The upper bound of the binding limit above, and the limit of each
+  // bearing of a held track (one joined across a gap since it was bound).
   double association_max_d2 = 16.0;
   double association_ambiguity = 4.0;
   // A bound track is unbound after this many successive gated bearings
@@ -132,6 +146,10 @@ struct NavigatorOptions {
   double clock_known_s = 0.02;
   double clock_min_offset_s = 0.02;
 };
+
+// The binding limit on a track's mean squared Mahalanobis distance over its
+// n bearings (NavigatorOptions::association_confidence).
+double association_limit_d2(const NavigatorOptions& options, int n);
 
 // SOD's options from the uplinked telecommands, as the navigator builds its
 // filter (artms-sod-replay uses the same function).
