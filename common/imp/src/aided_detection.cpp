@@ -204,7 +204,10 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
 double aided_centroid_sigma_px(double nu, double flux_dn, const AidedDetectionOptions& opt) {
   const double s = opt.psf_sigma_px;
   const double N = std::max(flux_dn, 1.0) * opt.gain_e_per_dn;
-  return std::sqrt(2.0 * s * s / (nu * nu) + s * s / N + opt.centroid_sigma_floor_px * opt.centroid_sigma_floor_px);
+  // The photon term of the IWCoG above (weights of the PSF's width), 1.95
+  // times the bound's s^2 / N at s = 1.2 px (iwcog_variance_px2).
+  return std::sqrt(2.0 * s * s / (nu * nu) + iwcog_variance_px2(s, s, N, 0.0) +
+                   opt.centroid_sigma_floor_px * opt.centroid_sigma_floor_px);
 }
 
 std::optional<double> forced_snr(std::span<const std::uint16_t> pixels, int width, int height,

@@ -479,24 +479,6 @@ double cramer_rao_variance_px2(double s_psf, double n_e, double b_e2) {
   return sp2 / n_e + 8.0 * std::numbers::pi * sp2 * sp2 * b_e2 / (n_e * n_e);
 }
 
-// IWCoG with a Gaussian weight of width s_w on a spot of width s_p, by
-// linearising x = sum w I x / sum w I at its fixed point: the weighted sum
-// captures r = s_w^2 / (s_w^2 + s_p^2) of the flux and the re-centring
-// multiplies a fixed window's error by 1 / r, so
-//   var = A / (N r^4) + pi s_w^4 b / (2 N^2 r^4),
-//   A = [h / (h + s_p^2)] [h s_p^2 / (h + s_p^2)],  h = s_w^2 / 2
-// (photon term: the integral of w^2 x^2 over the spot; background term: of
-// w^2 x^2 over the plane). For s_w = s_p = s this is 16 s^2 / (9 N) +
-// 8 pi s^4 b / N^2: the bound's background term but 1.78 times its photon
-// term, which is why bright stars scattered 1.4 times the Cramer-Rao figure.
-double iwcog_variance_px2(double s_w, double s_psf, double n_e, double b_e2) {
-  if (!(n_e > 0.0)) return 0.0;
-  const double sp2 = s_psf * s_psf + 1.0 / 12.0, sw2 = s_w * s_w;
-  const double r = sw2 / (sw2 + sp2), r4 = r * r * r * r;
-  const double h = 0.5 * sw2;
-  const double a = (h / (h + sp2)) * (h * sp2 / (h + sp2));
-  return a / (n_e * r4) + std::numbers::pi * sw2 * sw2 * b_e2 / (2.0 * n_e * n_e * r4);
-}
 
 // Goodness of fit of a single PSF at the centroid (header, item 6) over the
 // window's unsaturated, unmasked pixels.
@@ -518,6 +500,25 @@ int centroid_window_half_px(const DetectionOptions& o) {
 }
 
 }  // namespace
+
+// IWCoG with a Gaussian weight of width s_w on a spot of width s_p, by
+// linearising x = sum w I x / sum w I at its fixed point: the weighted sum
+// captures r = s_w^2 / (s_w^2 + s_p^2) of the flux and the re-centring
+// multiplies a fixed window's error by 1 / r, so
+//   var = A / (N r^4) + pi s_w^4 b / (2 N^2 r^4),
+//   A = [h / (h + s_p^2)] [h s_p^2 / (h + s_p^2)],  h = s_w^2 / 2
+// (photon term: the integral of w^2 x^2 over the spot; background term: of
+// w^2 x^2 over the plane). For s_w = s_p = s this is 16 s^2 / (9 N) +
+// 8 pi s^4 b / N^2: the bound's background term but 1.78 times its photon
+// term, which is why bright stars scattered 1.4 times the Cramer-Rao figure.
+double iwcog_variance_px2(double s_w, double s_psf, double n_e, double b_e2) {
+  if (!(n_e > 0.0)) return 0.0;
+  const double sp2 = s_psf * s_psf + 1.0 / 12.0, sw2 = s_w * s_w;
+  const double r = sw2 / (sw2 + sp2), r4 = r * r * r * r;
+  const double h = 0.5 * sw2;
+  const double a = (h / (h + sp2)) * (h * sp2 / (h + sp2));
+  return a / (n_e * r4) + std::numbers::pi * sw2 * sw2 * b_e2 / (2.0 * n_e * n_e * r4);
+}
 
 double centroid_sigma_px(const DetectionOptions& o, double signal_dn, double noise_dn, double psf_width_px,
                          double weight_width_px, bool saturated) {

@@ -243,6 +243,14 @@ struct Centroid {
   double weight_width_px = 0.0;
 };
 
+// Centroid variance per axis (px^2) of the iteratively weighted centre of
+// gravity with a Gaussian weight of width s_w_px on a Gaussian spot of width
+// s_psf_px carrying n_e electrons over a background variance b_e2 (e-^2 per
+// pixel): its photon term and its background term (detection.cpp derives
+// them). With b_e2 = 0, the photon term alone: 16 s^2 / (9 N) for s_w = s_psf,
+// 1.78 times the Cramer-Rao bound's.
+[[nodiscard]] double iwcog_variance_px2(double s_w_px, double s_psf_px, double n_e, double b_e2);
+
 // Centroid 1-sigma per axis (px) of item 5 for a source of signal_dn
 // (max(flux_dn, peak_dn)) on a local noise of noise_dn, sampled-PSF width
 // psf_width_px and IWCoG weight width weight_width_px (the Gaussian fit uses
