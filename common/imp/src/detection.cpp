@@ -479,7 +479,6 @@ double cramer_rao_variance_px2(double s_psf, double n_e, double b_e2) {
   return sp2 / n_e + 8.0 * std::numbers::pi * sp2 * sp2 * b_e2 / (n_e * n_e);
 }
 
-
 // Goodness of fit of a single PSF at the centroid (header, item 6) over the
 // window's unsaturated, unmasked pixels.
 double psf_chi2_z(const Frame& f, const DetectionOptions& o, double noise_dn, int half, double xc, double yc) {
