@@ -451,7 +451,8 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
 void Observer::expected_signal_sigma(imp::SignalHistory& h, imp::Candidate& c, std::int64_t t_ns) {
   if (!up_.tuning.imp.signal_history || !processor_ || c.aided || c.saturated || !(c.signal_dn > 0.0)) return;
   const double t_s = static_cast<double>(t_ns) * 1e-9;
-  c.sigma_rad = processor_->sigma_rad_for_signal(c, h.expected(t_s, c.signal_dn, c.signal_variance_dn2));
+  const imp::SignalHistory::Estimate e = h.estimate(t_s, c.signal_dn, c.signal_variance_dn2);
+  c.sigma_rad = processor_->sigma_rad_for_signal(c, e.signal_dn, e.variance_dn2);
   if (!c.blended) h.add(t_s, c.signal_dn, c.signal_variance_dn2);
 }
 

@@ -189,7 +189,7 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
   out.centroid.flux_dn = flux;
   out.centroid.peak_dn = at(best_x, best_y) - b;
   out.centroid.pixels = 1;
-  out.centroid.sigma_px = aided_centroid_sigma_px(best, flux, opt);
+  out.centroid.sigma_px = aided_centroid_sigma_px(best, flux, opt, 1.0);  // its own nu alone: noise 1
   {
     const int ix = static_cast<int>(std::lround(cx)), iy = static_cast<int>(std::lround(cy));
     std::vector<PsfFitPixel> fit;
@@ -201,12 +201,13 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
   return out;
 }
 
-double aided_centroid_sigma_px(double nu, double flux_dn, const AidedDetectionOptions& opt) {
+double aided_centroid_sigma_px(double nu, double flux_dn, const AidedDetectionOptions& opt, double nu_variance) {
   const double s = opt.psf_sigma_px;
   const double N = std::max(flux_dn, 1.0) * opt.gain_e_per_dn;
   // The photon term of the IWCoG above (weights of the PSF's width), 1.95
   // times the bound's s^2 / N at s = 1.2 px (iwcog_variance_px2).
-  return std::sqrt(2.0 * s * s / (nu * nu) + iwcog_variance_px2(s, s, N, 0.0) +
+  const double background = signal_posterior_factors(nu, nu_variance).background;
+  return std::sqrt(background * 2.0 * s * s / (nu * nu) + iwcog_variance_px2(s, s, N, 0.0) +
                    opt.centroid_sigma_floor_px * opt.centroid_sigma_floor_px);
 }
 
@@ -291,11 +292,21 @@ std::optional<SnrPrior> ForcedPhotometry::expected_before(double t_s, double win
   return p;
 }
 
+namespace {
+double snr_spread(const SnrPrior& prior) {
+  return prior.frames >= 4 ? std::max(prior.variance - prior.noise_variance, 0.0) + prior.variance / prior.frames
+                           : 0.0;
+}
+}  // namespace
+
 double snr_for_sigma(double nu_detection, const SnrPrior& prior) {
-  const double tau2 = prior.frames >= 4
-                          ? std::max(prior.variance - prior.noise_variance, 0.0) + prior.variance / prior.frames
-                          : 0.0;
+  const double tau2 = snr_spread(prior);
   return std::max(1.0, (tau2 * nu_detection + prior.mean) / (tau2 + 1.0));
+}
+
+double snr_posterior_variance(const SnrPrior& prior) {
+  const double tau2 = snr_spread(prior);
+  return tau2 / (tau2 + 1.0);
 }
 
 void SignalHistory::add(double t_s, double signal_dn, double variance_dn2) {
@@ -310,11 +321,17 @@ double SignalHistory::last_t_s() const {
 
 double SignalHistory::expected(double t_s, double signal_dn, double variance_dn2, double window_s,
                                int min_frames) const {
-  if (!(variance_dn2 > 0.0) || !std::isfinite(signal_dn)) return signal_dn;
+  return estimate(t_s, signal_dn, variance_dn2, window_s, min_frames).signal_dn;
+}
+
+SignalHistory::Estimate SignalHistory::estimate(double t_s, double signal_dn, double variance_dn2, double window_s,
+                                                int min_frames) const {
+  if (!(variance_dn2 > 0.0) || !std::isfinite(signal_dn)) return {signal_dn, 0.0};
   const WindowMoments m = window_moments(seen_, t_s, window_s);
-  if (m.n < std::max(min_frames, 2)) return signal_dn;
+  if (m.n < std::max(min_frames, 2)) return {signal_dn, variance_dn2};
   const double tau2 = std::max(m.variance - m.noise_variance, 0.0) + m.variance / m.n;
-  return (tau2 * signal_dn + variance_dn2 * m.mean) / (tau2 + variance_dn2);
+  return {(tau2 * signal_dn + variance_dn2 * m.mean) / (tau2 + variance_dn2),
+          tau2 * variance_dn2 / (tau2 + variance_dn2)};
 }
 
 }  // namespace artms::imp

@@ -519,13 +519,27 @@ double iwcog_variance_px2(double s_w, double s_psf, double n_e, double b_e2) {
   return a / (n_e * r4) + std::numbers::pi * sw2 * sw2 * b_e2 / (2.0 * n_e * n_e * r4);
 }
 
+SignalPosteriorFactors signal_posterior_factors(double signal, double variance) {
+  if (!(signal > 0.0) || !(variance > 0.0) || !std::isfinite(variance)) return {};
+  const double r2 = std::min(variance / (signal * signal), kMaxSignalRelVariance);
+  return {1.0 + r2, 1.0 + 3.0 * r2};
+}
+
 double centroid_sigma_px(const DetectionOptions& o, double signal_dn, double noise_dn, double psf_width_px,
-                         double weight_width_px, bool saturated) {
+                         double weight_width_px, bool saturated, double signal_variance_dn2) {
   const double n_e = signal_dn * o.gain_e_per_dn;
   const double b_e2 = std::pow(noise_dn * o.gain_e_per_dn, 2);
-  const double var_px2 = o.centroid_method == CentroidMethod::kGaussianFit
-                             ? cramer_rao_variance_px2(psf_width_px, n_e, b_e2)
-                             : iwcog_variance_px2(weight_width_px, psf_width_px, n_e, b_e2);
+  const auto variance = [&](double b2) {
+    return o.centroid_method == CentroidMethod::kGaussianFit
+               ? cramer_rao_variance_px2(psf_width_px, n_e, b2)
+               : iwcog_variance_px2(weight_width_px, psf_width_px, n_e, b2);
+  };
+  double var_px2 = variance(b_e2);
+  if (signal_variance_dn2 > 0.0) {
+    const double photon = variance(0.0);
+    const SignalPosteriorFactors f = signal_posterior_factors(signal_dn, signal_variance_dn2);
+    var_px2 = f.photon * photon + f.background * (var_px2 - photon);
+  }
   double sigma = n_e > 0.0 ? std::sqrt(var_px2 + o.centroid_sigma_floor_px * o.centroid_sigma_floor_px)
                            : static_cast<double>(centroid_window_half_px(o));
   if (saturated) sigma = std::max(sigma, o.saturated_sigma_px);

@@ -460,9 +460,9 @@ std::optional<bool> FrameProcessor::source_in(const Last& frame, std::span<const
   return a.found || a.peaks > 1;
 }
 
-double FrameProcessor::sigma_rad_for_signal(const Candidate& c, double signal_dn) const {
-  const double sigma_px =
-      centroid_sigma_px(opt_.detection, signal_dn, c.noise_dn, c.psf_width_px, c.weight_width_px, c.saturated);
+double FrameProcessor::sigma_rad_for_signal(const Candidate& c, double signal_dn, double signal_variance_dn2) const {
+  const double sigma_px = centroid_sigma_px(opt_.detection, signal_dn, c.noise_dn, c.psf_width_px,
+                                            c.weight_width_px, c.saturated, signal_variance_dn2);
   return std::hypot(blend_sigma_px(sigma_px, c.blended, opt_) / K_.fx, c.attitude_sigma_rad);
 }
 
@@ -496,7 +496,10 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   cand.u_cam = K_.unproject({a.centroid.x_px, a.centroid.y_px});
   cand.u_eci = (last_.R_eci_from_cam * cand.u_cam).normalized();
   double sigma_px = a.centroid.sigma_px;
-  if (expected_snr) sigma_px = aided_centroid_sigma_px(snr_for_sigma(a.snr, *expected_snr), a.centroid.flux_dn, options);
+  if (expected_snr) {
+    sigma_px = aided_centroid_sigma_px(snr_for_sigma(a.snr, *expected_snr), a.centroid.flux_dn, options,
+                                       snr_posterior_variance(*expected_snr));
+  }
   // The blend rules of process()'s candidates: a poor single-PSF fit, a
   // detection or a catalogued star within blend_radius_px.
   const Eigen::Vector2d cp(cand.x_px, cand.y_px);

@@ -114,7 +114,12 @@ AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int
 // the bound has s^2 / N) and the floor. With the bound's photon term, SOD-aided
 // centroids of 600-1500 e- on NST frames had a mean (error / 1-sigma)^2 per
 // axis of 1.07-1.28 (docs/imp_samus.md, section 9).
-[[nodiscard]] double aided_centroid_sigma_px(double nu, double flux_dn, const AidedDetectionOptions& options);
+// With nu_variance > 0 (the variance of what is known of the SNR:
+// snr_posterior_variance, or 1 for a detection's own nu alone), the
+// background term is its expectation over that SNR, times 1 + 3 r^2 with
+// r^2 = nu_variance / nu^2 (signal_posterior_factors).
+[[nodiscard]] double aided_centroid_sigma_px(double nu, double flux_dn, const AidedDetectionOptions& options,
+                                             double nu_variance = 0.0);
 
 // Forced photometry: the matched-filter SNR nu at a given sub-pixel position
 // (the kernel centred there, background the median of the ring of pixels
@@ -175,6 +180,9 @@ class ForcedPhotometry {
 // target is bright, which the mean of all frames under-states). Variance
 // is only trusted from 4 frames on (below: tau^2 = 0). At least 1.
 [[nodiscard]] double snr_for_sigma(double nu_detection, const SnrPrior& prior);
+// The variance of that estimate of the true SNR: tau^2 / (tau^2 + 1) (0 with
+// tau^2 = 0: a steady target's mean taken as known).
+[[nodiscard]] double snr_posterior_variance(const SnrPrior& prior);
 
 // A source's recent detected signals (Centroid::signal_dn, DN), each with its
 // noise variance (window_signal_variance_dn2), for the 1-sigma of its next
@@ -199,6 +207,13 @@ class SignalHistory {
   void add(double t_s, double signal_dn, double variance_dn2);
   [[nodiscard]] double expected(double t_s, double signal_dn, double variance_dn2, double window_s = 1800.0,
                                 int min_frames = 4) const;
+  // expected() and the variance of that estimate of the signal:
+  // tau^2 v / (tau^2 + v), or v itself with fewer than min_frames earlier ones.
+  struct Estimate {
+    double signal_dn = 0.0, variance_dn2 = 0.0;
+  };
+  [[nodiscard]] Estimate estimate(double t_s, double signal_dn, double variance_dn2, double window_s = 1800.0,
+                                  int min_frames = 4) const;
   // Time of the latest signal kept; -infinity when none.
   [[nodiscard]] double last_t_s() const;
 

@@ -258,8 +258,24 @@ struct Centroid {
 // quadrature, saturated_sigma_px the least when saturated; the centroid
 // window's half-width when signal_dn is not positive. detect() calls it with
 // the detection's own signal.
+// With signal_variance_dn2 > 0, the variance of what is known of the signal
+// (SignalHistory::estimate's posterior), the centroid variance is its
+// expectation over that signal, not its value at the estimate: to second
+// order the photon term (1 / N) times 1 + r^2 and the background term
+// (1 / N^2) times 1 + 3 r^2, r^2 = signal_variance_dn2 / signal_dn^2, at
+// most kMaxSignalRelVariance (beyond it the posterior is far from Gaussian).
+// A filter weighing by 1 / sigma^2 is consistent when sigma^2 is the
+// expected squared error given what it knows (docs/imp_samus.md section 9).
+inline constexpr double kMaxSignalRelVariance = 0.25;
 [[nodiscard]] double centroid_sigma_px(const DetectionOptions& o, double signal_dn, double noise_dn,
-                                       double psf_width_px, double weight_width_px, bool saturated);
+                                       double psf_width_px, double weight_width_px, bool saturated,
+                                       double signal_variance_dn2 = 0.0);
+// The factors above: E[1 / N] ~ (1 + r^2) / N and E[1 / N^2] ~ (1 + 3 r^2) / N^2
+// for N ~ N(n, r^2 n^2), r^2 clamped to [0, kMaxSignalRelVariance].
+struct SignalPosteriorFactors {
+  double photon = 1.0, background = 1.0;
+};
+[[nodiscard]] SignalPosteriorFactors signal_posterior_factors(double signal, double variance);
 // Variance (DN^2) of a centroid window's summed signal (flux_dn): the
 // window's (2 half + 1)^2 pixels of noise noise_dn and the source's photon
 // noise. Used to weigh one detection's signal against its source's earlier ones.

@@ -185,8 +185,11 @@ class FrameProcessor {
   [[nodiscard]] const FrameProcessorOptions& options() const { return opt_; }
   // A candidate's sigma_rad computed again for signal_dn instead of its own
   // Candidate::signal_dn (the same noise, PSF, blend and attitude terms);
-  // equal to sigma_rad for its own signal.
-  [[nodiscard]] double sigma_rad_for_signal(const Candidate& c, double signal_dn) const;
+  // equal to sigma_rad for its own signal. signal_variance_dn2: that
+  // signal's uncertainty, over which the centroid variance is averaged
+  // (centroid_sigma_px).
+  [[nodiscard]] double sigma_rad_for_signal(const Candidate& c, double signal_dn,
+                                            double signal_variance_dn2 = 0.0) const;
   // SOD-aided detection (aided_detection.hpp) in the frame process() took
   // last, which must have had a usable attitude: a candidate near the
   // predicted pixel, or nullopt with the reason in *why. A source at the
@@ -243,8 +246,9 @@ class FrameProcessor {
   // expected_snr: the target's forced photometry of the recent frames
   // (ForcedPhotometry); when given, the centroid 1-sigma is computed at
   // snr_for_sigma(the detection's own SNR, expected_snr) instead of the
-  // detection's own SNR, which near the threshold over-states the source
-  // (docs/imp_samus.md section 9).
+  // detection's own SNR, which near the threshold over-states the source,
+  // averaged over that estimate's snr_posterior_variance (docs/imp_samus.md
+  // section 9).
   std::optional<Candidate> aided_candidate(std::span<const std::uint16_t> pixels, const Eigen::Vector2d& predicted_px,
                                            const Eigen::Matrix2d& cov_px2, const AidedDetectionOptions& options,
                                            std::string* why = nullptr, std::optional<SnrPrior> expected_snr = std::nullopt);
