@@ -99,7 +99,9 @@ struct SearchRegion {
 // target position and its covariance (pixels); noise_dn: the frame's
 // noise (DetectionResult); detections_px: the
 // frame's detections. Exactly one local maximum of nu above the threshold
-// inside the validity region, not near a detection: found.
+// inside the validity region, not near a detection: found. Its centroid's
+// sigma_px is aided_centroid_sigma_px at its own nu, averaged over that
+// nu's unit noise.
 AidedDetection detect_near_prediction(std::span<const std::uint16_t> pixels, int width, int height,
                                       const Eigen::Vector2d& predicted_px, const Eigen::Matrix2d& cov_px2,
                                       double noise_dn,
