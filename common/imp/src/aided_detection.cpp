@@ -272,6 +272,13 @@ WindowMoments window_moments(const std::deque<TimedValue>& seen, double t_s, dou
   return m;
 }
 
+// The spread of a source's true value from frame to frame plus the
+// uncertainty of its mean, from n values of sample variance `variance` whose
+// noise has mean variance `noise_variance`: tau^2 = max(S^2 - V, 0) + S^2 / n.
+double true_spread(double variance, double noise_variance, int n) {
+  return std::max(variance - noise_variance, 0.0) + variance / n;
+}
+
 }  // namespace
 
 void ForcedPhotometry::add(double t_s, double nu, double gain) {
@@ -294,8 +301,7 @@ std::optional<SnrPrior> ForcedPhotometry::expected_before(double t_s, double win
 
 namespace {
 double snr_spread(const SnrPrior& prior) {
-  return prior.frames >= 4 ? std::max(prior.variance - prior.noise_variance, 0.0) + prior.variance / prior.frames
-                           : 0.0;
+  return prior.frames >= 4 ? true_spread(prior.variance, prior.noise_variance, prior.frames) : 0.0;
 }
 }  // namespace
 
@@ -329,7 +335,7 @@ SignalHistory::Estimate SignalHistory::estimate(double t_s, double signal_dn, do
   if (!(variance_dn2 > 0.0) || !std::isfinite(signal_dn)) return {signal_dn, 0.0};
   const WindowMoments m = window_moments(seen_, t_s, window_s);
   if (m.n < std::max(min_frames, 2)) return {signal_dn, variance_dn2};
-  const double tau2 = std::max(m.variance - m.noise_variance, 0.0) + m.variance / m.n;
+  const double tau2 = true_spread(m.variance, m.noise_variance, m.n);
   return {(tau2 * signal_dn + variance_dn2 * m.mean) / (tau2 + variance_dn2),
           tau2 * variance_dn2 / (tau2 + variance_dn2)};
 }
