@@ -125,6 +125,7 @@ class VerdictTest(unittest.TestCase):
     def test_ends_within_3_sigma(self):
         r = self.row([0.5] * 300, [])
         self.assertEqual((r["verdict"], r["final_within_3sigma"], r["first_beyond_5sigma_orbits"]), ("PASS", True, None))
+        self.assertEqual((r["max_error_over_sigma_at_5sigma"], ws.cells(r)["jump"]), (None, "-"))
 
     def test_flagged_before_5_sigma_passes_flagged_after_fails(self):
         errs = [0.5] * 250 + [6.0] * 50  # beyond 5 sigma from step 250 = 2.5 orbits
@@ -133,6 +134,10 @@ class VerdictTest(unittest.TestCase):
         r = self.row(errs, [early])
         self.assertEqual((r["verdict"], r["first_beyond_5sigma_orbits"], r["first_health_event_orbits"]),
                          ("PASS", 2.5, 2.4))
+        # The jump past 5 sigma: the largest |error|/sigma at the step before and at the first step beyond.
+        self.assertEqual((r["max_error_over_sigma_step_before_5sigma"], r["max_error_over_sigma_at_5sigma"]),
+                         (0.5, 6.0))
+        self.assertEqual(ws.cells(r)["jump"], "0.5 -> 6.0")
         self.assertEqual(self.row(errs, [late])["verdict"], "FAIL")
 
     def test_longer_than_an_orbit_beyond_5_sigma_fails_in_any_case(self):

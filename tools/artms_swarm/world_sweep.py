@@ -20,7 +20,9 @@ Per (case, observer, target) one row: the final |a*dlambda error| and
 a*dlambda 1-sigma in % of range, the final max over the six ROE of
 |error|/sigma, whether every ROE ends within 3 sigma (summary.json); the first
 time after --settle-orbits that some ROE error exceeds 5 sigma
-(eval/targets.csv); the first health event of the observer naming the target
+(eval/targets.csv), with the largest |error|/sigma over the ROE at the step
+before and at that step (an impulsive change of the world, a burn, passes 5
+sigma within one step: no measurement can come before it); the first health event of the observer naming the target
 at or after that time (events.log: "suspect (health 1)", "unhealthy (",
 "health check 1 failed", "health check 5"; a filter-wide "SOD unhealthy (...)"
 counts for every target); the longest stretch beyond 5 sigma (orbits, whole
@@ -404,13 +406,16 @@ def case_rows(case_name, run_dir, epoch_tt, settle_orbits):
             max_z = max(z) if z else None
             within3 = bool(z) and all(v <= 3.0 for v in z)
             first5 = None
-            for r in pts:
+            z_before5 = z_at5 = None  # max |e|/sigma over the ROE at the step before the first 5-sigma step and at it
+            for k, r in enumerate(pts):
                 tn = r.int("t_tt_ns")
                 if tn < settle_ns:
                     continue
                 if any(_beyond(r.float(f"err_a_{q}_m", math.nan), r.float(f"sigma_a_{q}_m", math.nan), 5.0)
                        for q in ROE):
                     first5 = tn
+                    z_at5 = _max_z(r)
+                    z_before5 = _max_z(pts[k - 1]) if k > 0 else None
                     break
             ev = [(tn, msg) for tn, msg in health_events(run_dir, obs, tgt) if tn >= settle_ns]
             health_t, health_msg = ev[0] if ev else (None, None)
@@ -437,6 +442,8 @@ def case_rows(case_name, run_dir, epoch_tt, settle_orbits):
                 "final_error_over_sigma": {q: _num(v) for q, v in zip(ROE, z)},
                 "final_within_3sigma": within3,
                 "first_beyond_5sigma_orbits": _num(orbits(first5)) if first5 is not None else None,
+                "max_error_over_sigma_step_before_5sigma": _num(z_before5),
+                "max_error_over_sigma_at_5sigma": _num(z_at5),
                 "first_health_event_orbits": _num(orbits(health_t)) if health_t is not None else None,
                 "first_health_event": health_msg,
                 "health_events_after_settle": len(ev),
@@ -452,6 +459,13 @@ def case_rows(case_name, run_dir, epoch_tt, settle_orbits):
 
 def _beyond(e, s, n):
     return _finite(e) and _finite(s) and abs(e) > n * s
+
+
+def _max_z(r):
+    """max over the six ROE of |error| / 1-sigma on one eval/targets.csv row (None when none is finite)."""
+    z = [abs(r.float(f"err_a_{q}_m", math.nan)) / r.float(f"sigma_a_{q}_m", math.nan) for q in ROE
+         if _finite(r.float(f"err_a_{q}_m", math.nan)) and r.float(f"sigma_a_{q}_m", math.nan) > 0]
+    return max(z) if z else None
 
 
 def _longest_beyond(pts, period):
@@ -478,6 +492,7 @@ def _num(v):
 
 COLUMNS = [("case", "case"), ("pair", "obs->tgt"), ("err", "dl err %"), ("sig", "dl 1sig %"),
            ("maxz", "max |e|/sig"), ("in3", "all <=3sig"), ("first5", "first >5sig [orb]"),
+           ("jump", "max |e|/sig: step before -> at it"),
            ("health", "first health event [orb]: text"), ("longest", "longest >5sig [orb] (healthy)"),
            ("verdict", "verdict")]
 
@@ -488,7 +503,7 @@ def _f(v, spec):
 
 def cells(row):
     if row.get("problem"):
-        return {"case": row["case"], "pair": "-", "err": "-", "sig": "-", "maxz": "-", "in3": "-", "first5": "-",
+        return {"case": row["case"], "pair": "-", "err": "-", "sig": "-", "maxz": "-", "in3": "-", "first5": "-", "jump": "-",
                 "health": "run failed: " + row["problem"][:60], "longest": "-", "verdict": "NO RUN"}
     h = "-"
     if row["first_health_event_orbits"] is not None:
@@ -496,7 +511,11 @@ def cells(row):
     return {"case": row["case"], "pair": f"{row['observer']}->{row['target']}",
             "err": _f(row["final_dlambda_error_pct"], "{:.3f}"), "sig": _f(row["final_dlambda_sigma_pct"], "{:.3f}"),
             "maxz": _f(row["final_max_error_over_sigma"], "{:.2f}"), "in3": "yes" if row["final_within_3sigma"] else "no",
-            "first5": _f(row["first_beyond_5sigma_orbits"], "{:.2f}"), "health": h,
+            "first5": _f(row["first_beyond_5sigma_orbits"], "{:.2f}"),
+            "jump": (f"{_f(row['max_error_over_sigma_step_before_5sigma'], '{:.1f}')} -> "
+                     f"{_f(row['max_error_over_sigma_at_5sigma'], '{:.1f}')}"
+                     if row["first_beyond_5sigma_orbits"] is not None else "-"),
+            "health": h,
             "longest": f"{_f(row['longest_beyond_5sigma_orbits'], '{:.2f}')} "
                        f"({_f(row['longest_beyond_5sigma_reported_healthy_orbits'], '{:.2f}')})",
             "verdict": row["verdict"]}
