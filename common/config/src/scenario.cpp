@@ -1373,7 +1373,7 @@ class Parser {
     if (const Val* iv = m.find("imp")) {
       Map im(ctx_, *iv,
              {"detection_sigma", "dbscan_min_points", "dbscan_radius_px", "dbscan_frames", "aided_detection_snr",
-              "aided_false_alarms", "aberration_correction", "signal_history"});
+              "aided_false_alarms", "aberration_correction", "signal_history", "aided_stack_frames"});
       if (im.ok()) {
         number_field(ctx_, im, "detection_sigma", t.imp.detection_sigma, positive());
         int_field(ctx_, im, "dbscan_min_points", t.imp.dbscan_min_points, 1, kBig);
@@ -1384,6 +1384,7 @@ class Parser {
                      closed(0.0, 0.1, "0 = the fixed aided_detection_snr"));
         bool_field(ctx_, im, "aberration_correction", t.imp.aberration_correction);
         bool_field(ctx_, im, "signal_history", t.imp.signal_history);
+        int_field(ctx_, im, "aided_stack_frames", t.imp.aided_stack_frames, 0, 5);
       }
     }
     if (const Val* bv = m.find("bod")) {

@@ -167,7 +167,8 @@ void write_uplink(const ObserverUplink& u, const std::string& path) {
           {"aided_detection_snr", u.tuning.imp.aided_detection_snr},
           {"aided_false_alarms", u.tuning.imp.aided_false_alarms},
           {"aberration_correction", u.tuning.imp.aberration_correction},
-          {"signal_history", u.tuning.imp.signal_history}}},
+          {"signal_history", u.tuning.imp.signal_history},
+          {"aided_stack_frames", u.tuning.imp.aided_stack_frames}}},
         {"bod",
          {{"enabled", u.tuning.bod.enabled}, {"period_s", u.tuning.bod.period_s},
           {"samples", u.tuning.bod.samples}, {"max_iterations", u.tuning.bod.max_iterations},
@@ -323,6 +324,10 @@ ObserverUplink read_uplink(const std::string& path) {
     }
     u.tuning.imp.aberration_correction = t.at("imp").value("aberration_correction", false);  // older: none
     u.tuning.imp.signal_history = t.at("imp").value("signal_history", false);  // older: each detection's own
+    u.tuning.imp.aided_stack_frames = t.at("imp").value("aided_stack_frames", 0);  // older: none
+    if (u.tuning.imp.aided_stack_frames < 0 || u.tuning.imp.aided_stack_frames > 5) {
+      throw std::runtime_error(path + ": tuning.imp.aided_stack_frames must be in [0, 5]");
+    }
     const auto& bod = t.at("bod");
     u.tuning.bod.enabled = bod.at("enabled").get<bool>();
     u.tuning.bod.period_s = bod.at("period_s").get<double>();

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 #include <sstream>
 #include <string>
@@ -843,6 +844,32 @@ TEST(ScenarioLoad, AidedDetectionFalseAlarmRateIsUplinkedAndChecked) {
   EXPECT_DOUBLE_EQ(read_uplink(up).tuning.imp.aided_false_alarms, 0.0);
   expect_one("false_alarms_bad.yaml", kValid + "tuning:\n  imp: {aided_false_alarms: 0.5}\n", 13,
              "tuning.imp.aided_false_alarms", "expected 0 <= aided_false_alarms <= 0.1");
+}
+
+// The stacked aided search: carried by the uplink, 0 (off) in an uplink
+// written before it, and a count outside [0, 5] named.
+TEST(ScenarioLoad, AidedStackFramesAreUplinkedAndChecked) {
+  const Scenario s =
+      load_scenario(write_file("stack_frames.yaml", kValid + "tuning:\n  imp: {aided_stack_frames: 4}\n"));
+  EXPECT_EQ(s.tuning.imp.aided_stack_frames, 4);
+  const std::string up = ::testing::TempDir() + "/uplink_stack_frames.json";
+  write_uplink(make_uplink(s, "SV4"), up);
+  EXPECT_EQ(read_uplink(up).tuning.imp.aided_stack_frames, 4);
+  // An uplink written before the key: off.
+  std::string text;
+  {
+    std::ifstream in(up);
+    text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const auto at = text.find("\"aided_stack_frames\"");
+  ASSERT_NE(at, std::string::npos);
+  const auto end = text.find_first_of(",}", at);
+  std::string older = text.substr(0, at) + text.substr(end + (text[end] == ',' ? 1 : 0));
+  const std::string old_path = ::testing::TempDir() + "/uplink_stack_frames_old.json";
+  std::ofstream(old_path) << older;
+  EXPECT_EQ(read_uplink(old_path).tuning.imp.aided_stack_frames, 0);
+  expect_one("stack_frames_bad.yaml", kValid + "tuning:\n  imp: {aided_stack_frames: 6}\n", 13,
+             "tuning.imp.aided_stack_frames", "expected an integer 0 <= aided_stack_frames <= 5");
 }
 
 TEST(ScenarioValidation, UnknownOrSelfTargetsAreNamed) {

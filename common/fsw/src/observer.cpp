@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <span>
 #include <stdexcept>
 #include <tuple>
@@ -386,6 +387,7 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
         // with no candidate in its validity region is searched for below the
         // frame's detection threshold.
         std::vector<imp::Candidate> candidates = fr.candidates;
+        std::set<int> searched;  // targets whose aided search ran in this frame
         if (up_.tuning.imp.aided_detection_snr > 0.0) {
           const Eigen::Matrix3d R_cam_from_eci = fr.q_cam_from_eci.toRotationMatrix();
           const auto pixel_of = [&](const Eigen::Vector3d& u) { return K_.project(R_cam_from_eci * u); };
@@ -405,14 +407,48 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
               const Eigen::Vector2d d = Eigen::Vector2d(c.x_px, c.y_px) - reg.px;
               return d.dot(S_inv * d) <= aided_options_.gate_chi2;
             });
-            if (have) continue;
-            const auto c = processor_->aided_candidate(pixels, reg.px, reg.cov_px2, aided_options_, nullptr, expected);
+            searched.insert(reg.target);
+            if (have) {
+              unseen_.erase(reg.target);
+              continue;
+            }
+            std::string why;
+            const auto c = processor_->aided_candidate(pixels, reg.px, reg.cov_px2, aided_options_, &why, expected);
             if (c) {
               candidates.push_back(*c);
               ++n_.aided_detections;
+              unseen_.erase(reg.target);
+              continue;
+            }
+            // Not in this frame alone: the frames since it was last seen,
+            // stacked along its predicted motion.
+            const auto stack = static_cast<std::size_t>(up_.tuning.imp.aided_stack_frames);
+            auto& unseen = unseen_[reg.target];
+            const std::uint32_t updates = navigator_->target_bearing_updates(reg.target);
+            if (stack < 2 || why != "none" || unseen_updates_[reg.target] != updates) {
+              unseen.clear();
+              unseen_updates_[reg.target] = updates;
+              if (stack < 2 || why != "none") continue;
+            }
+            unseen.insert(unseen.begin(), {tf_s, reg.px});
+            while (unseen.size() > stack || (unseen.size() > 1 && tf_s - unseen.back().t_s > kMaxStackSpanS)) {
+              unseen.pop_back();
+            }
+            if (unseen.size() < stack) continue;
+            const auto st =
+                processor_->stacked_aided_candidate(pixels, unseen, reg.cov_px2, aided_options_, &why);
+            if (st) {
+              candidates.push_back(*st);
+              ++n_.aided_detections;
+              ++n_.aided_stacked;
+              unseen.clear();  // each frame in one stacked detection at most
+            } else if (why == "frames not kept") {
+              unseen.resize(1);
             }
           }
         }
+        // A target not searched in this frame starts its stack again.
+        std::erase_if(unseen_, [&](const auto& kv) { return !searched.contains(kv.first); });
         // Refused when a frame before shows a source at its inertial
         // direction (a faint star); otherwise held for the next frame's look.
         for (const auto& a : navigator_->assign_untracked(tf, candidates, ss.taken, in.observer_eci, *samus_)) {
@@ -490,7 +526,11 @@ void Observer::flush_imp(astro::TimeTT t, ObserverOutputs& out) {
   events_.info(t.ns_since_j2000, "IMP: " + std::to_string(n_.frames_received) + " frames, " +
                                      std::to_string(samus_->tracks().size()) + " tracks, " +
                                      std::to_string(n_.measurements_released) + " measurements reported, " +
-                                     std::to_string(n_.aided_detections) + " SOD-aided detections, " +
+                                     std::to_string(n_.aided_detections) + " SOD-aided detections" +
+                                     (up_.tuning.imp.aided_stack_frames >= 2
+                                          ? " (" + std::to_string(n_.aided_stacked) + " on stacked frames)"
+                                          : std::string()) +
+                                     ", " +
                                      std::to_string(n_.direct_refused_star) +
                                      " single detections refused as faint stars (seen again at the same "
                                      "inertial direction), " +

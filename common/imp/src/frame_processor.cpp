@@ -472,6 +472,29 @@ std::optional<double> FrameProcessor::forced_snr(std::span<const std::uint16_t> 
   return imp::forced_snr(pixels, K_.width, K_.height, px, last_.noise_dn, options.psf_sigma_px);
 }
 
+Candidate FrameProcessor::aided_candidate_at(const AidedDetection& a, const Eigen::Vector2d& px,
+                                             double sigma_px) const {
+  Candidate cand;
+  cand.x_px = px.x();
+  cand.y_px = px.y();
+  cand.flux_dn = a.centroid.flux_dn;
+  cand.u_cam = K_.unproject(px);
+  cand.u_eci = (last_.R_eci_from_cam * cand.u_cam).normalized();
+  // The blend rules of process()'s candidates: a poor single-PSF fit, a
+  // detection or a catalogued star within blend_radius_px.
+  const auto within = [&](const std::vector<Eigen::Vector2d>& pts) {
+    return std::any_of(pts.begin(), pts.end(),
+                       [&](const Eigen::Vector2d& q) { return (q - px).norm() < opt_.blend_radius_px; });
+  };
+  cand.psf_chi2_z = a.psf_chi2_z;
+  cand.on_catalog_star = within(last_.catalog_px);
+  cand.blended = a.psf_chi2_z > opt_.blend_chi2_z || within(last_.detections_px) || cand.on_catalog_star;
+  cand.sigma_rad = std::hypot(blend_sigma_px(sigma_px, cand.blended, opt_) / K_.fx, last_.attitude_sigma_rad);
+  cand.attitude_sigma_rad = last_.attitude_sigma_rad;
+  cand.aided = true;
+  return cand;
+}
+
 std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::uint16_t> pixels,
                                                         const Eigen::Vector2d& predicted_px,
                                                         const Eigen::Matrix2d& cov_px2,
@@ -489,30 +512,12 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   const AidedDetection a = detect_near_prediction(pixels, K_.width, K_.height, predicted_px, cov_px2, last_.noise_dn,
                                                   avoid, options);
   if (!a.found) return refuse(a.why);
-  Candidate cand;
-  cand.x_px = a.centroid.x_px;
-  cand.y_px = a.centroid.y_px;
-  cand.flux_dn = a.centroid.flux_dn;
-  cand.u_cam = K_.unproject({a.centroid.x_px, a.centroid.y_px});
-  cand.u_eci = (last_.R_eci_from_cam * cand.u_cam).normalized();
   double sigma_px = a.centroid.sigma_px;
   if (expected_snr) {
     sigma_px = aided_centroid_sigma_px(snr_for_sigma(a.snr, *expected_snr), a.centroid.flux_dn, options,
                                        snr_posterior_variance(*expected_snr));
   }
-  // The blend rules of process()'s candidates: a poor single-PSF fit, a
-  // detection or a catalogued star within blend_radius_px.
-  const Eigen::Vector2d cp(cand.x_px, cand.y_px);
-  const auto within = [&](const std::vector<Eigen::Vector2d>& pts) {
-    return std::any_of(pts.begin(), pts.end(),
-                       [&](const Eigen::Vector2d& q) { return (q - cp).norm() < opt_.blend_radius_px; });
-  };
-  cand.psf_chi2_z = a.psf_chi2_z;
-  cand.on_catalog_star = within(last_.catalog_px);
-  cand.blended = a.psf_chi2_z > opt_.blend_chi2_z || within(last_.detections_px) || cand.on_catalog_star;
-  cand.sigma_rad = std::hypot(blend_sigma_px(sigma_px, cand.blended, opt_) / K_.fx, last_.attitude_sigma_rad);
-  cand.attitude_sigma_rad = last_.attitude_sigma_rad;
-  cand.aided = true;
+  Candidate cand = aided_candidate_at(a, {a.centroid.x_px, a.centroid.y_px}, sigma_px);
   const auto& P = opt_.persistence;
   while (!aided_seen_.empty() && last_.t_s - aided_seen_.front().first > P.history_max_age_s) aided_seen_.pop_front();
   const double cos_star = std::cos(P.star_tolerance_rad);
@@ -522,6 +527,109 @@ std::optional<Candidate> FrameProcessor::aided_candidate(std::span<const std::ui
   }
   aided_seen_.emplace_back(last_.t_s, cand.u_eci);
   if (star) return refuse("a faint star (same inertial direction as an earlier aided detection)");
+  if (why) why->clear();
+  return cand;
+}
+
+std::optional<Candidate> FrameProcessor::stacked_aided_candidate(std::span<const std::uint16_t> pixels,
+                                                                const std::vector<StackedPrediction>& predictions,
+                                                                const Eigen::Matrix2d& cov_px2,
+                                                                const AidedDetectionOptions& options,
+                                                                std::string* why) {
+  auto refuse = [&](const std::string& reason) -> std::optional<Candidate> {
+    if (why) *why = reason;
+    return std::nullopt;
+  };
+  const std::size_t n = predictions.size();
+  if (!last_.attitude_usable) return refuse("no attitude");
+  if (n < 2) return refuse("fewer than 2 frames");
+  if (pixels.size() != static_cast<std::size_t>(K_.width) * static_cast<std::size_t>(K_.height)) {
+    return refuse("frame size");
+  }
+  // The frames: the last one, then the kept ones, each with its prediction.
+  std::vector<const Last*> frames{&last_};
+  std::vector<std::span<const std::uint16_t>> px{pixels};
+  for (std::size_t k = 1; k < n; ++k) {
+    if (k - 1 >= recent_.size()) return refuse("frames not kept");
+    const Last& f = recent_[k - 1];
+    if (std::abs(f.t_s - predictions[k].t_s) > 1e-6 || f.pixels.size() != pixels.size()) {
+      return refuse("frames not kept");
+    }
+    frames.push_back(&f);
+    px.emplace_back(f.pixels);
+  }
+  if (std::abs(last_.t_s - predictions[0].t_s) > 1e-6) return refuse("frames not kept");
+  for (const auto& p : predictions)
+    if (!p.px.allFinite()) return refuse("outside");
+  // Whole-pixel shifts onto the last frame's prediction, and their rounding.
+  std::vector<Eigen::Vector2i> shift(n);
+  Eigen::Vector2d rounding = Eigen::Vector2d::Zero();
+  for (std::size_t k = 0; k < n; ++k) {
+    const Eigen::Vector2d d = predictions[0].px - predictions[k].px;
+    shift[k] = Eigen::Vector2i(static_cast<int>(std::lround(d.x())), static_cast<int>(std::lround(d.y())));
+    rounding += shift[k].cast<double>() - d;
+  }
+  rounding /= static_cast<double>(n);
+  // The cutout (last frame's pixels) that detect_near_prediction reads.
+  const double s = options.psf_sigma_px;
+  const Eigen::Matrix2d S = cov_px2 + s * s * Eigen::Matrix2d::Identity();
+  const double reach = std::sqrt(options.gate_chi2 * S.diagonal().maxCoeff());
+  if (!std::isfinite(reach) || reach > options.max_half_window_px) return refuse("too wide");
+  const int half = static_cast<int>(std::ceil(reach)) + static_cast<int>(std::ceil(3.0 * s)) + 2;
+  const int cx = static_cast<int>(std::lround(predictions[0].px.x()));
+  const int cy = static_cast<int>(std::lround(predictions[0].px.y()));
+  const int ox = cx - half, oy = cy - half, w = 2 * half + 1;
+  for (std::size_t k = 0; k < n; ++k) {
+    const int x0 = ox - shift[k].x(), y0 = oy - shift[k].y();
+    if (x0 < 0 || y0 < 0 || x0 + w > K_.width || y0 + w > K_.height) return refuse("outside");
+  }
+  std::vector<std::uint16_t> sum(static_cast<std::size_t>(w) * static_cast<std::size_t>(w));
+  for (int y = 0; y < w; ++y)
+    for (int x = 0; x < w; ++x) {
+      std::uint32_t v = 0;
+      for (std::size_t k = 0; k < n; ++k) {
+        const int fx = ox + x - shift[k].x(), fy = oy + y - shift[k].y();
+        v += px[k][static_cast<std::size_t>(fy) * static_cast<std::size_t>(K_.width) + static_cast<std::size_t>(fx)];
+      }
+      sum[static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x)] =
+          static_cast<std::uint16_t>(std::min<std::uint32_t>(v, 65535u));
+    }
+  // Every frame's detections and hot pixels, where they fall in the stack.
+  std::vector<Eigen::Vector2d> avoid;
+  double noise2 = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Eigen::Vector2d to_stack = shift[k].cast<double>() - Eigen::Vector2d(ox, oy);
+    for (const auto& q : frames[k]->detections_px) avoid.push_back(q + to_stack);
+    for (const auto& q : hot_pixels(*frames[k])) avoid.push_back(q + to_stack);
+    noise2 += frames[k]->noise_dn * frames[k]->noise_dn;
+  }
+  const Eigen::Vector2d predicted_in_stack = predictions[0].px - Eigen::Vector2d(ox, oy);
+  const AidedDetection a =
+      detect_near_prediction(sum, w, w, predicted_in_stack, cov_px2, std::sqrt(noise2), avoid, options);
+  if (!a.found) return refuse(a.why);
+  // The mean offset from the predictions, as the last frame's pixel.
+  const Eigen::Vector2d offset =
+      Eigen::Vector2d(a.centroid.x_px, a.centroid.y_px) - predicted_in_stack - rounding;
+  const Eigen::Vector2d at_last = predictions[0].px + offset;
+  // The light spread over the frames as a target's, not one frame's.
+  std::vector<double> nu;
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto v = imp::forced_snr(px[k], K_.width, K_.height, predictions[k].px + offset, frames[k]->noise_dn, s);
+    if (!v) return refuse("outside");
+    nu.push_back(*v);
+  }
+  for (std::size_t k = 0; k < n; ++k) {
+    double others = 0.0;
+    for (std::size_t j = 0; j < n; ++j)
+      if (j != k) others += nu[j];
+    others /= static_cast<double>(n - 1);
+    if (nu[k] - others > kStackOneFrameExcess) return refuse("one frame's source");
+  }
+  // At the stack's own nu, averaged over its unit noise (detect_near_prediction):
+  // the frames' forced photometry would over-state it, the stack being made of
+  // frames where the target was not found.
+  Candidate cand = aided_candidate_at(a, at_last, a.centroid.sigma_px);
+  cand.stacked_frames = static_cast<int>(n);
   if (why) why->clear();
   return cand;
 }

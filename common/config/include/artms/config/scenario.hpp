@@ -177,6 +177,11 @@ struct ImpTuning {
   // track, and per target for single detections) instead of its own noisy
   // one; false: its own.
   bool signal_history = true;
+  // > 1: an untracked target the aided search misses in this many
+  // consecutive frames is searched for on their sum, shifted along its
+  // predicted motion (imp::FrameProcessor::stacked_aided_candidate; not in
+  // the paper); 0 or 1: off. At most 5 (the frames IMP keeps).
+  int aided_stack_frames = 0;
 };
 struct BodTuning {
   bool enabled = true;               // BOD runs in modes 1-3 (paper: health check 1, re-initialisation)

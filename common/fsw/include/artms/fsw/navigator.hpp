@@ -298,6 +298,12 @@ class Navigator {
   // Local bearings left out because another target was predicted within
   // NavigatorOptions::blend_separation_px.
   [[nodiscard]] std::size_t blended_measurements() const { return blended_; }
+  // Bearing updates of target k so far (local and remote, fused or refused
+  // by the gate): a change means its predictions since then come from
+  // another estimate (the stacked aided search restarts its stack).
+  [[nodiscard]] std::uint32_t target_bearing_updates(int k) const {
+    return k >= 0 && static_cast<std::size_t>(k) < nis_n_.size() ? nis_n_[static_cast<std::size_t>(k)] : 0;
+  }
   // Per frame and target: aided searches not run because the target was
   // predicted in the Earth's umbra (NavigatorOptions::skip_eclipsed_targets).
   [[nodiscard]] std::size_t eclipsed_searches_skipped() const { return eclipsed_skipped_; }

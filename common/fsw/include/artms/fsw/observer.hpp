@@ -97,6 +97,7 @@ class Observer {
     std::size_t gnss_rejected = 0;
     std::size_t measurements_released = 0;
     std::uint32_t aided_detections = 0;
+    std::uint32_t aided_stacked = 0;  // of them, found on stacked frames (tuning.imp.aided_stack_frames)
     std::uint32_t direct_refused_star = 0;
     std::uint32_t direct_refused_stacked_star = 0;  // a source at the direction in the stack of other frames
     std::uint32_t direct_blended_stacked = 0;       // a neighbour within the blend radius in that stack
@@ -170,6 +171,19 @@ class Observer {
   imp::AidedDetectionOptions aided_options_;
   std::vector<std::uint16_t> decoded_;  // frame pixels in DN (camera calibration dn_shift_bits undone)
   std::map<int, imp::ForcedPhotometry> forced_;  // per target index: forced photometry at its prediction
+  // Per target index: its predicted pixels in the latest frames whose aided
+  // search found nothing there ("none"), most recent first, for the stacked
+  // aided search (FrameProcessor::stacked_aided_candidate).
+  std::map<int, std::vector<imp::FrameProcessor::StackedPrediction>> unseen_;
+  // Per target index: its bearing updates when its stack began
+  // (Navigator::target_bearing_updates): the stacked frames' predictions
+  // must come from one estimate, or the offset they share is not the last
+  // frame's (an earlier prediction's error, larger, pulls the bearing
+  // towards that earlier estimate).
+  std::map<int, std::uint32_t> unseen_updates_;
+  // The stacked frames span at most this long (the prediction's error taken
+  // as the same over them).
+  static constexpr double kMaxStackSpanS = 600.0;
   std::map<int, imp::SignalHistory> track_signal_;   // per SAMUS track id: its released detections' signals
   std::map<int, imp::SignalHistory> target_signal_;  // per target index: its single detections' signals
   std::optional<Navigator> navigator_;
