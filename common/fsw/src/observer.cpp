@@ -423,12 +423,13 @@ void Observer::handle_frame(const bus::CameraFrame& f, astro::TimeTT t, Observer
             // Not in this frame alone: the frames since it was last seen,
             // stacked along its predicted motion.
             const auto stack = static_cast<std::size_t>(up_.tuning.imp.aided_stack_frames);
+            if (stack < 2) continue;
             auto& unseen = unseen_[reg.target];
             const std::uint32_t updates = navigator_->target_bearing_updates(reg.target);
-            if (stack < 2 || why != "none" || unseen_updates_[reg.target] != updates) {
+            if (why != "none" || unseen_updates_[reg.target] != updates) {
               unseen.clear();
               unseen_updates_[reg.target] = updates;
-              if (stack < 2 || why != "none") continue;
+              if (why != "none") continue;
             }
             unseen.insert(unseen.begin(), {tf_s, reg.px});
             while (unseen.size() > stack || (unseen.size() > 1 && tf_s - unseen.back().t_s > kMaxStackSpanS)) {
