@@ -20,8 +20,8 @@
 #     and T150: both converge (a*dlambda within 1 % of range to the end);
 #     T20 within 6 orbits. T150's "within 6 orbits" is its own test,
 #     integration.bod_assist_far_target (tests/integration/CMakeLists.txt:
-#     not met since stop 52: 7.44 orbits, 6.39 since stop 53), which reads
-#     this run's summary.
+#     not met from stop 52 to stop 60, met since stop 61's stacked aided
+#     search: 0.42 orbits), which reads this run's summary.
 set -euo pipefail
 BIN=${ARTMS_BIN:?}; SRC=${ARTMS_SOURCE_DIR:?}; WORK=${1:?}
 rm -rf "$WORK"; mkdir -p "$WORK"

@@ -473,7 +473,7 @@ std::optional<double> FrameProcessor::forced_snr(std::span<const std::uint16_t> 
 }
 
 Candidate FrameProcessor::aided_candidate_at(const AidedDetection& a, const Eigen::Vector2d& px,
-                                             double sigma_px) const {
+                                             double sigma_px, bool blended_before) const {
   Candidate cand;
   cand.x_px = px.x();
   cand.y_px = px.y();
@@ -488,7 +488,8 @@ Candidate FrameProcessor::aided_candidate_at(const AidedDetection& a, const Eige
   };
   cand.psf_chi2_z = a.psf_chi2_z;
   cand.on_catalog_star = within(last_.catalog_px);
-  cand.blended = a.psf_chi2_z > opt_.blend_chi2_z || within(last_.detections_px) || cand.on_catalog_star;
+  cand.blended =
+      a.psf_chi2_z > opt_.blend_chi2_z || within(last_.detections_px) || cand.on_catalog_star || blended_before;
   cand.sigma_rad = std::hypot(blend_sigma_px(sigma_px, cand.blended, opt_) / K_.fx, last_.attitude_sigma_rad);
   cand.attitude_sigma_rad = last_.attitude_sigma_rad;
   cand.aided = true;
@@ -625,10 +626,21 @@ std::optional<Candidate> FrameProcessor::stacked_aided_candidate(std::span<const
     others /= static_cast<double>(n - 1);
     if (nu[k] - others > kStackOneFrameExcess) return refuse("one frame's source");
   }
+  // A detection or a catalogued star within blend_radius_px of the target in
+  // any stacked frame is in the sum too: the stack is a blend.
+  bool blended_before = false;
+  for (std::size_t k = 1; k < n; ++k) {
+    const Eigen::Vector2d at_k = predictions[k].px + offset;
+    const auto near = [&](const std::vector<Eigen::Vector2d>& pts) {
+      return std::any_of(pts.begin(), pts.end(),
+                         [&](const Eigen::Vector2d& q) { return (q - at_k).norm() < opt_.blend_radius_px; });
+    };
+    blended_before = blended_before || near(frames[k]->detections_px) || near(frames[k]->catalog_px);
+  }
   // At the stack's own nu, averaged over its unit noise (detect_near_prediction):
   // the frames' forced photometry would over-state it, the stack being made of
   // frames where the target was not found.
-  Candidate cand = aided_candidate_at(a, at_last, a.centroid.sigma_px);
+  Candidate cand = aided_candidate_at(a, at_last, a.centroid.sigma_px, blended_before);
   cand.stacked_frames = static_cast<int>(n);
   if (why) why->clear();
   return cand;

@@ -819,6 +819,7 @@ TEST(FrameProcessorStackedAided, AFaintTargetIsFoundOnFourFramesAndASourceInOneI
   const Eigen::Vector2d off(0.4, -0.3);
   const Eigen::Matrix2d cov = 0.25 * Eigen::Matrix2d::Identity();
   int trials = 0, found = 0, single_found = 0, star_trials = 0, star_found = 0, star_one_frame = 0;
+  int found_blended = 0, neighbour_found = 0, neighbour_blended = 0;
   double sum_z2 = 0.0, max_z = 0.0;
   const auto add_spot = [&](std::vector<std::uint16_t>& px, const Eigen::Vector2d& at, double nu, double noise) {
     const double flux = nu * noise * std::sqrt(4.0 * std::numbers::pi) * kPsf;
@@ -867,15 +868,21 @@ TEST(FrameProcessorStackedAided, AFaintTargetIsFoundOnFourFramesAndASourceInOneI
     }
     auto with_star = with_target;
     add_spot(with_star[2], truth[2], kStarNu, noise[2]);
-    FrameProcessor p(k, nst_catalog()), q(k, nst_catalog());
+    // A source detect() finds, 5 px from the target in an earlier frame
+    // (outside the search's 4 px avoidance, inside the 6 px blend radius).
+    auto with_neighbour = with_target;
+    add_spot(with_neighbour[1], truth[1] + Eigen::Vector2d(3.0, 4.0), 40.0, noise[1]);
+    FrameProcessor p(k, nst_catalog()), q(k, nst_catalog()), r(k, nst_catalog());
     p.keep_recent_frames(kFrames);
     q.keep_recent_frames(kFrames);
+    r.keep_recent_frames(kFrames);
     std::vector<FrameProcessor::StackedPrediction> predictions;
     for (int j = 0; j < kFrames; ++j) {
       const astro::TimeTT t = frame_epoch().plus_seconds(60.0 * j);
       const FrameSummary sp = p.process(with_target[static_cast<std::size_t>(j)], t);
       const FrameSummary sq = q.process(with_star[static_cast<std::size_t>(j)], t);
-      if (!sp.attitude_usable || !sq.attitude_usable) clear = false;
+      const FrameSummary sr = r.process(with_neighbour[static_cast<std::size_t>(j)], t);
+      if (!sp.attitude_usable || !sq.attitude_usable || !sr.attitude_usable) clear = false;
       predictions.insert(predictions.begin(), {t.seconds_since_j2000(), truth[static_cast<std::size_t>(j)] + off});
     }
     if (!clear) continue;
@@ -886,11 +893,21 @@ TEST(FrameProcessorStackedAided, AFaintTargetIsFoundOnFourFramesAndASourceInOneI
     const auto c = p.stacked_aided_candidate(with_target.back(), predictions, cov, o, &why);
     if (c) {
       ++found;
+      if (c->blended) ++found_blended;
       EXPECT_EQ(c->stacked_frames, kFrames);
       const double sigma_px = c->sigma_rad * k.fx;
       const double zx = (c->x_px - truth.back().x()) / sigma_px, zy = (c->y_px - truth.back().y()) / sigma_px;
       sum_z2 += 0.5 * (zx * zx + zy * zy);
       max_z = std::max({max_z, std::abs(zx), std::abs(zy)});
+    }
+    // The neighbour's light is in the sum: the stack is a blend, its
+    // 1-sigma widened.
+    if (const auto b = r.stacked_aided_candidate(with_neighbour.back(), predictions, cov, o, &why)) {
+      ++neighbour_found;
+      if (b->blended) ++neighbour_blended;
+      if (c && !c->blended) {
+        EXPECT_GT(b->sigma_rad, c->sigma_rad);
+      }
     }
     // Wrong times: the kept frames are not the predictions'.
     auto shifted = predictions;
@@ -907,7 +924,13 @@ TEST(FrameProcessorStackedAided, AFaintTargetIsFoundOnFourFramesAndASourceInOneI
   std::printf("[ figures ] %d trials: found in one frame %d, on four stacked frames %d (mean (error / sigma)^2 %.2f, "
               "max |error / sigma| %.2f); with a nu %.0f source in one frame too: found %d, refused as one frame's %d\n",
               trials, single_found, found, found ? sum_z2 / found : 0.0, max_z, kStarNu, star_found, star_one_frame);
+  std::printf("[ figures ] blends: %d of %d stacks without the neighbour, %d of %d with a nu 40 source 5 px from "
+              "the target in an earlier frame\n",
+              found_blended, found, neighbour_blended, neighbour_found);
   ASSERT_GE(trials, 6);
+  EXPECT_GE(neighbour_found, trials / 2);
+  EXPECT_EQ(neighbour_blended, neighbour_found);
+  EXPECT_LE(found_blended, 1);
   EXPECT_LE(single_found, trials / 3);
   EXPECT_GE(found, trials - 2);
   EXPECT_LT(max_z, 3.5);

@@ -180,8 +180,9 @@ struct ImpTuning {
   // > 1: an untracked target the aided search misses in this many
   // consecutive frames is searched for on their sum, shifted along its
   // predicted motion (imp::FrameProcessor::stacked_aided_candidate; not in
-  // the paper); 0 or 1: off. At most 5 (the frames IMP keeps).
-  int aided_stack_frames = 0;
+  // the paper); 0 or 1: off. At most 5 (the frames IMP keeps). Uplinks
+  // written before the key read 0.
+  int aided_stack_frames = 4;
 };
 struct BodTuning {
   bool enabled = true;               // BOD runs in modes 1-3 (paper: health check 1, re-initialisation)

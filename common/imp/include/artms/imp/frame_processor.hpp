@@ -320,9 +320,10 @@ class FrameProcessor {
   double prior_t_s_ = 0.0;
   std::deque<Seen> history_;
   // An aided candidate at pixel px of the last frame from the found search
-  // a, with centroid 1-sigma sigma_px, under process()'s blend rules.
-  [[nodiscard]] Candidate aided_candidate_at(const AidedDetection& a, const Eigen::Vector2d& px,
-                                             double sigma_px) const;
+  // a, with centroid 1-sigma sigma_px, under process()'s blend rules;
+  // blended_before: a blend in a stacked frame before the last.
+  [[nodiscard]] Candidate aided_candidate_at(const AidedDetection& a, const Eigen::Vector2d& px, double sigma_px,
+                                             bool blended_before = false) const;
   // The last frame, for aided_candidate().
   struct Last {
     bool attitude_usable = false;
