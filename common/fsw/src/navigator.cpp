@@ -671,6 +671,18 @@ void Navigator::process(const Event& queued, const imp::Samus& samus) {
       as.d2_sum.resize(target_ids_.size(), 0.0);
       as.unpredicted.resize(target_ids_.size(), 0);
       if (!association_d2(f, samus, e, d2, &as.unpredicted)) return;
+      // A bearing taken while its nearest target is predicted within
+      // blend_separation_px of another may be either's: SAMUS can swap
+      // where two targets cross (IT with the phase drawn, seed 26: track 2
+      // followed SV2 to 5.8 px from SV3, went on with SV3's light, and was
+      // bound to SV2 by bearings of both). The association starts again.
+      const auto nearest = static_cast<int>(std::min_element(d2.begin(), d2.end()) - d2.begin());
+      if (blended(f, nearest, e.t, false)) {
+        as.d2_sum.assign(target_ids_.size(), 0.0);
+        as.unpredicted.assign(target_ids_.size(), 0);
+        as.n = 0;
+        return;
+      }
       for (std::size_t k = 0; k < target_ids_.size(); ++k) as.d2_sum[k] += d2[k];
       ++as.n;
       if (as.n >= opt_.association_min_measurements) {
@@ -906,7 +918,7 @@ void Navigator::process_remote(const std::vector<Event>& group) {
   check_health();
 }
 
-bool Navigator::blended(sod::SodFilter& f, int k, astro::TimeTT t) {
+bool Navigator::blended(sod::SodFilter& f, int k, astro::TimeTT t, bool count) {
   const double fx = up_.camera_calibration.fx_px;
   if (!(opt_.blend_separation_px > 0.0) || !(fx > 0.0) || target_ids_.size() < 2) return false;
   if (!f.time_update(t).usable) return false;
@@ -916,7 +928,7 @@ bool Navigator::blended(sod::SodFilter& f, int k, astro::TimeTT t) {
     const Eigen::Vector3d v = los_eci_of(observer_target_mean(f, j)).normalized();
     const double angle = std::acos(std::clamp(u.dot(v), -1.0, 1.0));
     if (angle * fx < opt_.blend_separation_px) {
-      ++blended_;
+      if (count) ++blended_;
       return true;
     }
   }

@@ -283,6 +283,59 @@ TEST(NavigatorBlend, BearingsOfTargetsPredictedOnTheSameSpotAreLeftOut) {
   EXPECT_GT(fused_nofx, 50u);
 }
 
+// A SAMUS track's bearings taken while another target is predicted within
+// blend_separation_px (8 px) of the nearest target do not bind it: SAMUS can
+// swap where two targets cross (IT with the orbit phase drawn, seed 26), so
+// the association starts again after each. Two targets under 8 px apart at the
+// NST's 5660 px/rad (SV3 twice SV2's ROE, 8 m further out of plane), track 9
+// carrying SV2's light with 5" noise: bound to SV2 with the rule off (fx 0),
+// never bound with it on.
+bool track_bound_near_another_target(double fx_px) {
+  auto a_roe = starling_a_roe_m();
+  a_roe.resize(2);
+  a_roe[0] << 0.0, -5000.0, 30.0, -20.0, 25.0, 40.0;
+  a_roe[1] = 2.0 * a_roe[0];
+  a_roe[1](4) += 8.0;
+  a_roe[1](5) += 8.0;
+  Truth truth(kT0, observer_at_start(), a_roe);
+  std::mt19937_64 rng(5);
+  config::ObserverUplink up = uplink_at_truth(truth, rng);
+  up.camera_calibration.fx_px = fx_px;
+  Navigator nav(up, j2_forces());
+  imp::Samus samus;
+  imp::TrackerInput in;
+  in.observer_eci = truth.observer_eci();
+  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
+  samus.process(in, {});  // sets SAMUS's tracking plane
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double s = 5 * astro::kArcsecToRad;
+  bool bound = false;
+  double max_sep_px = 0.0;
+  for (int k = 0; k <= 30; ++k) {
+    const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
+    truth.advance_to(t);
+    nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
+    if (k > 0) {
+      const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
+      const Eigen::Vector3d v = (truth.target_eci(1).r_m - truth.observer_eci().r_m).normalized();
+      max_sep_px = std::max(max_sep_px, std::acos(std::clamp(u.dot(v), -1.0, 1.0)) * 5660.0);
+      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+      nav.add_bearing(t, 9, (u + s * g(rng) * a + s * g(rng) * b).normalized(), Eigen::Quaterniond::Identity(), s);
+    }
+    nav.advance(t, t, samus);
+    for (const auto& m : nav.take_messages()) {
+      if (m.find("IMP track 9 bound to target SV2") != std::string::npos) bound = true;
+    }
+  }
+  EXPECT_LT(max_sep_px, 8.0);
+  return bound;
+}
+
+TEST(NavigatorTracks, ATrackIsNotBoundByBearingsTakenWhereTwoTargetsAreWithinTheBlendSeparation) {
+  EXPECT_TRUE(track_bound_near_another_target(0.0));
+  EXPECT_FALSE(track_bound_near_another_target(5660.0));
+}
+
 }  // namespace
 }  // namespace artms::fsw
 

@@ -542,8 +542,8 @@ class Navigator {
   // The own-clock check (NavigatorOptions::clock_known_s); true when it corrected the clock.
   bool check_own_clock();
   // Is target k predicted (filter f, time-updated to t) within
-  // blend_separation_px of another target?
-  bool blended(sod::SodFilter& f, int k, astro::TimeTT t);
+  // blend_separation_px of another target? count: a bearing left out for it.
+  bool blended(sod::SodFilter& f, int k, astro::TimeTT t, bool count = true);
   // The filter's bearing 1-sigma: sod.bearing_sigma_arcsec, or IMP's own when 0.
   [[nodiscard]] double bearing_sigma(double imp_sigma_rad) const;
   // A track bearing against every target's prediction at its image time:
