@@ -161,6 +161,14 @@ TEST(NavigatorMode3, Mode1IgnoresRemoteBearings) {
   EXPECT_GT(o.sig1[1], 2000.0);  // nothing but the a-priori and GNSS
 }
 
+// SAMUS's tracking plane for an anti-velocity camera at the truth's start.
+void set_anti_velocity_plane(imp::Samus& samus, const Truth& truth) {
+  imp::TrackerInput in;
+  in.observer_eci = truth.observer_eci();
+  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
+  samus.process(in, {});
+}
+
 }  // namespace
 }  // namespace artms::fsw
 
@@ -303,10 +311,7 @@ bool track_bound_near_another_target(double fx_px) {
   up.camera_calibration.fx_px = fx_px;
   Navigator nav(up, j2_forces());
   imp::Samus samus;
-  imp::TrackerInput in;
-  in.observer_eci = truth.observer_eci();
-  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
-  samus.process(in, {});  // sets SAMUS's tracking plane
+  set_anti_velocity_plane(samus, truth);
   std::normal_distribution<double> g(0.0, 1.0);
   const double s = 5 * astro::kArcsecToRad;
   bool bound = false;
@@ -367,10 +372,7 @@ JoinRun run_track_joined_across_a_gap(int second_target) {
   config::ObserverUplink up = uplink_at_truth(truth, rng);
   Navigator nav(up, j2_forces());
   imp::Samus samus;
-  imp::TrackerInput in;
-  in.observer_eci = truth.observer_eci();
-  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
-  samus.process(in, {});  // sets SAMUS's tracking plane
+  set_anti_velocity_plane(samus, truth);
   std::normal_distribution<double> g(0.0, 1.0);
   const double s = 5 * astro::kArcsecToRad;
   std::vector<std::string> messages;
@@ -444,10 +446,7 @@ BindRun run_displaced_track(double offset_rad, const NavigatorOptions& options) 
   const config::ObserverUplink up = uplink_at_truth(truth, rng);
   Navigator nav(up, j2_forces(), options);
   imp::Samus samus;
-  imp::TrackerInput in;
-  in.observer_eci = truth.observer_eci();
-  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
-  samus.process(in, {});  // sets SAMUS's tracking plane
+  set_anti_velocity_plane(samus, truth);
   const double s = 5 * astro::kArcsecToRad;
   BindRun r;
   for (int k = 0; k <= 10; ++k) {
@@ -769,10 +768,7 @@ TEST(NavigatorTimeTags, TheAssociationAtTheImageTimeLosesNoBearingOfTheSameFrame
   up.tuning.sod.time_tag_sigma_s = 0.5;
   Navigator nav(up, j2_forces());
   imp::Samus samus;
-  imp::TrackerInput in;
-  in.observer_eci = truth.observer_eci();
-  in.boresight_eci = -truth.observer_eci().v_mps.normalized();
-  samus.process(in, {});  // sets SAMUS's tracking plane
+  set_anti_velocity_plane(samus, truth);
   std::normal_distribution<double> g(0.0, 1.0);
   const double s = 3 * astro::kArcsecToRad;
   std::vector<std::string> messages;
