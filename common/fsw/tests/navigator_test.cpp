@@ -19,6 +19,13 @@
 namespace artms::fsw {
 namespace {
 
+// u with white noise of sigma_rad along two axes across it.
+Eigen::Vector3d with_noise(const Eigen::Vector3d& u, double sigma_rad, std::normal_distribution<double>& g,
+                           std::mt19937_64& rng) {
+  const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
+  return (u + sigma_rad * g(rng) * a + sigma_rad * g(rng) * b).normalized();
+}
+
 using sod::testing::j2_forces;
 using sod::testing::observer_at_start;
 using sod::testing::starling_a_roe_m;
@@ -68,10 +75,7 @@ Outcome run(int mode, bool clutter, int delay_min = 0, double remote_hold_s = -1
   const imp::Samus samus;
   std::normal_distribution<double> g(0.0, 1.0);
   const double s = 10 * astro::kArcsecToRad;
-  auto noisy = [&](Eigen::Vector3d u) {
-    const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-    return (u + s * g(rng) * a + s * g(rng) * b).normalized();
-  };
+  auto noisy = [&](Eigen::Vector3d u) { return with_noise(u, s, g, rng); };
   for (int k = 0; k <= 6 * 95; ++k) {
     const astro::TimeTT t = kT0.plus_seconds(60.0 * k);
     truth.advance_to(t);
@@ -212,8 +216,7 @@ std::pair<std::size_t, std::uint32_t> blend_run(bool aligned, double fx_px) {
     nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
     if (k > 0) {
       const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
-      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-      nav.add_direct(t, 0, (u + s * g(rng) * a + s * g(rng) * b).normalized(), Eigen::Quaterniond::Identity(), s);
+      nav.add_direct(t, 0, with_noise(u, s, g, rng), Eigen::Quaterniond::Identity(), s);
     }
     nav.advance(t, t, samus);
   }
@@ -324,8 +327,7 @@ bool track_bound_near_another_target(double fx_px) {
       const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
       const Eigen::Vector3d v = (truth.target_eci(1).r_m - truth.observer_eci().r_m).normalized();
       max_sep_px = std::max(max_sep_px, std::acos(std::clamp(u.dot(v), -1.0, 1.0)) * 5660.0);
-      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-      nav.add_bearing(t, 9, (u + s * g(rng) * a + s * g(rng) * b).normalized(), Eigen::Quaterniond::Identity(), s);
+      nav.add_bearing(t, 9, with_noise(u, s, g, rng), Eigen::Quaterniond::Identity(), s);
     }
     nav.advance(t, t, samus);
     for (const auto& m : nav.take_messages()) {
@@ -383,8 +385,7 @@ JoinRun run_track_joined_across_a_gap(int second_target) {
     if (k > 0) {
       const int target = k <= 20 ? 0 : second_target;
       const Eigen::Vector3d u = (truth.target_eci(target).r_m - truth.observer_eci().r_m).normalized();
-      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-      nav.add_bearing(t, 7, (u + s * g(rng) * a + s * g(rng) * b).normalized(), Eigen::Quaterniond::Identity(), s,
+      nav.add_bearing(t, 7, with_noise(u, s, g, rng), Eigen::Quaterniond::Identity(), s,
                       k <= 20 ? 1 : 2);  // the SAMUS segment
     }
     nav.advance(t, t, samus);
@@ -511,9 +512,7 @@ BodRun bod_run(config::ObserverUplink up, Truth& truth, int minutes, int burn_mi
     nav.add_gnss(truth.gnss(2.0, 0.01, false, nullptr));
     if (k > 0) {
       const Eigen::Vector3d u = (truth.target_eci(0).r_m - truth.observer_eci().r_m).normalized();
-      const Eigen::Vector3d a = u.unitOrthogonal(), b = u.cross(a);
-      nav.add_bearing(t, 4, (u + s * g(rng) * a + s * g(rng) * b).normalized(),
-                      Eigen::Quaterniond(truth.camera(0)), s);
+      nav.add_bearing(t, 4, with_noise(u, s, g, rng), Eigen::Quaterniond(truth.camera(0)), s);
     }
     nav.advance(t, t, samus);
     for (auto& m : nav.take_messages()) out.messages.push_back(std::move(m));
